@@ -1,0 +1,1 @@
+"""Benchmarks: ``pneunet-grasp bench speed`` and ``pneunet-grasp bench solvers``."""

@@ -1,0 +1,171 @@
+"""Physical units at the edges: mm and kPa in, dimensionless inside, mm and kPa out.
+
+The model is solved in units of the chamber width ``w`` (lengths) and the elastomer's small-strain
+shear modulus ``mu`` (stresses, pressure, moduli). :class:`Scales` holds the two and converts
+both ways; :class:`PhysicalActuator` is supplement Table 1 in mm and kPa.
+
+| quantity              | dimensionless              | physical                            |
+|-----------------------|----------------------------|-------------------------------------|
+| length                | ``L~ = L / w``             | mm                                  |
+| curvature             | ``kappa~ = w kappa``       | 1/m                                 |
+| pressure, stress      | ``p~ = p / mu``            | kPa                                 |
+| traction ``F``        | ``F~ = F / mu``            | kPa (force per unit contact area)   |
+| Winkler stiffness     | ``k~ = k_obj w / mu``      | kPa/mm (traction per indentation)   |
+| energy                | ``U~ = U / (mu t w^2)``    | mJ (needs the depth ``t``)          |
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from .params import ActuatorParams, check_finite
+
+__all__ = ["PAPER_MODULUS_PER_STIFFNESS_PA", "Scales", "PhysicalActuator", "object_stiffness_from_material", "object_modulus_from_stiffness"]
+
+
+def _positive(name: str, value: float) -> float:
+    v = check_finite(name, value)
+    if v <= 0.0:
+        raise ValueError(f"{name} must be > 0, got {value!r}")
+    return v
+
+
+@dataclass(frozen=True)
+class Scales:
+    """The two scales of the dimensionless model: chamber width ``w`` (mm) and shear modulus ``mu`` (kPa)."""
+
+    width_mm: float = 5.0
+    shear_modulus_kpa: float = 50.0
+
+    def __post_init__(self) -> None:
+        _positive("width_mm", self.width_mm)
+        _positive("shear_modulus_kpa", self.shear_modulus_kpa)
+
+    # lengths
+    def length_to_mm(self, length: float) -> float:
+        return length * self.width_mm
+
+    def length_from_mm(self, mm: float) -> float:
+        return mm / self.width_mm
+
+    # curvature: kappa~ = w kappa, kappa in 1/m
+    def curvature_to_per_m(self, kappa: float) -> float:
+        return kappa / (self.width_mm * 1e-3)
+
+    def curvature_from_per_m(self, per_m: float) -> float:
+        return per_m * self.width_mm * 1e-3
+
+    # pressure, traction, moduli
+    def stress_to_kpa(self, stress: float) -> float:
+        return stress * self.shear_modulus_kpa
+
+    def stress_from_kpa(self, kpa: float) -> float:
+        return kpa / self.shear_modulus_kpa
+
+    # Winkler stiffness: k~ = k_obj w / mu, k_obj in kPa/mm
+    def stiffness_to_kpa_per_mm(self, k: float) -> float:
+        return k * self.shear_modulus_kpa / self.width_mm
+
+    def stiffness_from_kpa_per_mm(self, kpa_per_mm: float) -> float:
+        return kpa_per_mm * self.width_mm / self.shear_modulus_kpa
+
+    def energy_to_mj(self, energy: float, depth_mm: float) -> float:
+        """``U = U~ mu t w^2``; kPa * mm^3 = 1e-6 J = 1e-3 mJ."""
+        return energy * self.shear_modulus_kpa * depth_mm * self.width_mm**2 * 1e-3
+
+
+def object_stiffness_from_material(
+    shear_modulus_kpa: float, thickness_mm: float, curvature_per_m: float, scales: Scales = Scales()
+) -> float:
+    """Dimensionless Winkler stiffness ``k~`` of an incompressible annular-sector object (eq. 3.2).
+
+    ``k_obj = 2 mu_obj kappa_obj (1/(1 - H kappa_obj)^2 - 1)``, then ``k~ = k_obj w / mu``.
+
+    Args:
+        shear_modulus_kpa: the object's shear modulus ``mu_obj`` (kPa), ``>= 0``.
+        thickness_mm: the object's thickness ``H`` (mm), with ``0 < H kappa_obj < 1``.
+        curvature_per_m: the object's outer curvature ``kappa_obj`` (1/m), ``> 0``.
+    """
+    mu_obj = check_finite("shear_modulus_kpa", shear_modulus_kpa)
+    if mu_obj < 0.0:
+        raise ValueError(f"shear_modulus_kpa (object) must be >= 0, got {shear_modulus_kpa!r}")
+    H = _positive("thickness_mm", thickness_mm) * 1e-3
+    kap = _positive("curvature_per_m", curvature_per_m)
+    if H * kap >= 1.0:
+        raise ValueError(
+            f"object thickness H={thickness_mm!r} mm is not below its outer radius 1/kappa_obj="
+            f"{1e3 / kap:.4g} mm (need H kappa_obj < 1)"
+        )
+    k_obj_kpa_per_m = 2.0 * mu_obj * kap * (1.0 / (1.0 - H * kap) ** 2 - 1.0)  # kPa / m
+    return scales.stiffness_from_kpa_per_mm(k_obj_kpa_per_m * 1e-3)
+
+
+def object_modulus_from_stiffness(
+    stiffness: float, thickness_mm: float, curvature_per_m: float, scales: Scales = Scales()
+) -> float:
+    """Inverse of :func:`object_stiffness_from_material`: the shear modulus (kPa) giving ``k~``."""
+    unit = object_stiffness_from_material(1.0, thickness_mm, curvature_per_m, scales)
+    k = check_finite("stiffness", stiffness)
+    if k < 0.0:
+        raise ValueError(f"stiffness (k~) must be >= 0, got {stiffness!r}")
+    return k / unit
+
+
+@dataclass(frozen=True)
+class PhysicalActuator:
+    """The actuator in physical units (supplement Table 1 defaults): lengths in mm, moduli in kPa."""
+
+    width_mm: float = 5.0
+    height_mm: float = 5.0
+    depth_mm: float = 5.0
+    base_thickness_mm: float = 2.5
+    side_thickness_mm: float = 2.5
+    top_thickness_mm: float = 2.5
+    shear_modulus_kpa: float = 50.0
+    base_modulus_kpa: float = 3000.0
+    poisson_ratio: float = 0.5
+    gent_limit: float = 20.0
+
+    def __post_init__(self) -> None:
+        for name in ("width_mm", "height_mm", "depth_mm", "shear_modulus_kpa"):
+            _positive(name, getattr(self, name))
+        for name in ("base_thickness_mm", "side_thickness_mm", "top_thickness_mm", "base_modulus_kpa"):
+            check_finite(name, getattr(self, name))
+
+    @property
+    def scales(self) -> Scales:
+        return Scales(self.width_mm, self.shear_modulus_kpa)
+
+    def to_dimensionless(self) -> ActuatorParams:
+        """The :class:`ActuatorParams` of this actuator (validated there: a wall thicker than the chamber raises)."""
+        w, mu = self.width_mm, self.shear_modulus_kpa
+        return ActuatorParams(
+            chamber_height=self.height_mm / w,
+            base_thickness=self.base_thickness_mm / w,
+            side_thickness=self.side_thickness_mm / w,
+            top_thickness=self.top_thickness_mm / w,
+            base_modulus=self.base_modulus_kpa / mu,
+            poisson_ratio=self.poisson_ratio,
+            gent_limit=self.gent_limit,
+        )
+
+    @classmethod
+    def from_dimensionless(cls, params: ActuatorParams, scales: Scales = Scales(), depth_mm: float = 5.0):
+        """The physical actuator of ``params`` at the given scales."""
+        w, mu = scales.width_mm, scales.shear_modulus_kpa
+        return cls(
+            width_mm=w,
+            height_mm=params.chamber_height * w,
+            depth_mm=depth_mm,
+            base_thickness_mm=params.base_thickness * w,
+            side_thickness_mm=params.side_thickness * w,
+            top_thickness_mm=params.top_thickness * w,
+            shear_modulus_kpa=mu,
+            base_modulus_kpa=params.base_modulus * mu,
+            poisson_ratio=params.poisson_ratio,
+            gent_limit=params.gent_limit,
+        )
+
+
+# The paper's eq. 3.3 constant: mu_obj / k~ in Pa for Table 1 (H = 1 cm, kappa_obj = 4 /m).
+PAPER_MODULUS_PER_STIFFNESS_PA = 1e3 * object_modulus_from_stiffness(1.0, 10.0, 4.0)
