@@ -109,7 +109,14 @@ class ActuatorParams:
 
     @property
     def small_pressure_slope(self) -> float:
-        """The leading-order slope ``d kappa~ / d p~`` at rest, supplement eq. 17."""
-        d, _, hs, hm, _, _, _ = self.as_tuple()
-        num = 4.0 * d * (d + hm) + (hm**2 - hs**2) - 8.0 * d * hm * hs
+        """The leading-order slope ``d kappa~ / d p~`` at rest, supplement eq. 17.
+
+        ``[4 d (d + h_m) + h_m^2 - h_b^2 - 8 d h_m h_s] / (8 B)`` with ``B`` the bending stiffness (eq. 18).
+        The seed's garbled eq. 17 is transcribed with ``h_s^2`` where this has ``h_b^2``; differentiating
+        the chamber volume (supplement eq. 10) at rest gives ``h_b^2`` (``h_s`` enters the volume only
+        through the side-wall correction, whose curvature derivative vanishes at rest). The two agree at
+        the paper's defaults (``h_s = h_b``); the full model's slope follows this form (tested).
+        """
+        d, hb, hs, hm, _, _, _ = self.as_tuple()
+        num = 4.0 * d * (d + hm) + (hm**2 - hb**2) - 8.0 * d * hm * hs
         return num / (8.0 * self.bending_stiffness)

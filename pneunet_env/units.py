@@ -20,7 +20,13 @@ from dataclasses import dataclass
 
 from .params import ActuatorParams, check_finite
 
-__all__ = ["PAPER_MODULUS_PER_STIFFNESS_PA", "Scales", "PhysicalActuator", "object_stiffness_from_material", "object_modulus_from_stiffness"]
+__all__ = [
+    "PAPER_MODULUS_PER_STIFFNESS_PA",
+    "Scales",
+    "PhysicalActuator",
+    "object_stiffness_from_material",
+    "object_modulus_from_stiffness",
+]
 
 
 def _positive(name: str, value: float) -> float:

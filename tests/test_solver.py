@@ -1,0 +1,169 @@
+"""The quasi-static minimiser: accepted states are minima, paths follow branches, the paper's regimes appear."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from pneunet_env import ActuatorParams, load_path, mechanics, solve_equilibrium
+from pneunet_env.solver import ACCEPT_GTOL, Equilibrium
+
+KO = 0.02  # w kappa_obj, the paper's object
+
+
+def assert_minimum(eq: Equilibrium, params: ActuatorParams) -> None:
+    """An accepted state: converged, in the domain, zero gradient and a positive-definite Hessian (re-evaluated)."""
+    assert eq.converged, eq.status
+    assert all(math.isfinite(v) for v in (eq.curvature, eq.side_strain, eq.energy, eq.contact_force))
+    assert bool(mechanics.in_domain(eq.curvature, eq.side_strain, params))
+    d = mechanics.energy_grad_hess(eq.curvature, eq.side_strain, eq.pressure, params, eq.object_stiffness,
+                                   eq.object_curvature)
+    assert np.linalg.norm(d.gradient) <= ACCEPT_GTOL
+    assert np.linalg.eigvalsh(d.hessian).min() > 0.0
+
+
+def test_rest_at_zero_pressure(params):
+    eq = solve_equilibrium(0.0, params=params)
+    assert eq.state == (0.0, 0.0) and eq.energy == 0.0 and eq.converged
+
+
+@pytest.mark.parametrize("geometry", [{}, {"chamber_height": 1.3, "side_thickness": 0.3, "top_thickness": 0.7,
+                                          "base_thickness": 0.4}])
+def test_small_pressure_slope_tends_to_eq17(geometry):
+    params = ActuatorParams(**geometry)
+    slope = params.small_pressure_slope
+    if not geometry:
+        assert math.isclose(slope, 4 / (8 * (60 * 0.125 / 9 + 6)), rel_tol=1e-12)  # 0.073171
+    errors = [abs(solve_equilibrium(p, params=params).curvature / p - slope) for p in (1e-2, 1e-3, 1e-4)]
+    assert errors[0] > errors[1] > errors[2]  # converging as p -> 0 ...
+    assert errors[2] < 1e-4 * slope  # ... with an O(p) correction
+    assert errors[1] / errors[2] == pytest.approx(10, rel=0.1)
+
+
+def test_free_actuator_rises_slowly_then_steeply_then_saturates(params):
+    ps = np.linspace(0, 1.4, 141)
+    path = load_path(ps, 0.0, KO, params)
+    k = path.curvature
+    slope = np.gradient(k, ps)
+    initial = slope[1:5].mean()  # p in (0, 0.05)
+    assert initial == pytest.approx(params.small_pressure_slope, rel=0.05)
+    assert slope.max() > 8 * initial  # the balloon instability: a steep rise ...
+    assert 0.4 < ps[slope.argmax()] < 0.9
+    assert slope[-10:].mean() < 0.1 * slope.max()  # ... then Gent stiffening saturates it
+    assert 0.45 <= k[120] <= 0.7  # p = 1.2, as on the paper's Fig. 3 axes
+    assert not path.snapped.any()  # at J = 20 the free actuator has no fold
+    assert np.all(np.diff(k) > 0)
+
+
+def test_soft_object_traction_saturates(params):
+    ps = np.linspace(0, 2.0, 81)
+    path = load_path(ps, 1e-5, KO, params)
+    F = path.contact_force
+    assert F[-1] > 0
+    assert (F[-1] - F[40]) / F[-1] < 0.05  # p from 1.0 to 2.0: force control, traction bounded
+    assert path.curvature[-1] > 10 * KO  # the actuator curls as if free
+
+
+def test_stiff_object_curvature_pinned_while_traction_rises(params):
+    ps = np.linspace(0, 1.4, 57)
+    path = load_path(ps, 1e-2, KO, params)
+    contact = path.curvature > KO
+    assert contact[-1]
+    assert np.all(path.curvature <= 1.02 * KO)  # position control: within 2 % of kappa_obj
+    F = path.contact_force[contact]
+    assert np.all(np.diff(F) > 0)  # traction rises monotonically with pressure
+
+
+def test_intermediate_object_snaps_through_with_hysteresis(params):
+    up = np.linspace(0, 1.2, 121)
+    ps = np.concatenate([up, up[-2::-1]])
+    path = load_path(ps, 1e-4, KO, params)
+    n = len(up)
+    k_up, k_down = path.curvature[:n], path.curvature[n - 1:][::-1]
+    snaps_up = np.flatnonzero(path.snapped[:n])
+    snaps_down = np.flatnonzero(path.snapped[n:])
+    assert len(snaps_up) == 1 and len(snaps_down) == 1  # one fold each way
+    window = np.abs(k_up - k_down) > 0.1
+    assert window.sum() >= 3  # loading and unloading differ over a pressure window
+    p_window = up[window]
+    assert p_window.min() >= 0.5 and p_window.max() <= 0.8
+    assert np.all(path.converged)
+
+
+@pytest.mark.parametrize("kobj", [0.0, 1e-5, 1e-4, 1e-3, 1e-1])
+def test_path_independence_coarse_vs_fine(params, kobj):
+    coarse = load_path([0.4, 0.8, 1.2], kobj, KO, params)
+    fine = load_path(np.linspace(0, 1.2, 1201), kobj, KO, params)
+    assert abs(coarse.curvature[-1] - fine.curvature[-1]) <= 1e-8
+    assert abs(coarse.side_strain[-1] - fine.side_strain[-1]) <= 1e-8
+    single = solve_equilibrium(1.2, kobj, KO, params)
+    assert abs(single.curvature - fine.curvature[-1]) <= 1e-8
+
+
+def test_unloading_returns_to_rest(params):
+    path = load_path([0.0, 0.6, 1.2, 0.6, 0.0], 1e-3, KO, params)
+    assert abs(path.curvature[-1]) < 1e-12 and abs(path.side_strain[-1]) < 1e-12
+    assert path.curvature[1] == pytest.approx(path.curvature[3], abs=1e-10)
+
+
+def test_every_state_on_hard_paths_is_a_minimum():
+    cases = [
+        (ActuatorParams(), 1e-4, np.linspace(0, 1.2, 25)),  # fold
+        (ActuatorParams(), 1e-1, np.linspace(0, 2.0, 11)),  # very stiff: Hessian condition ~1e5
+        (ActuatorParams(gent_limit=2.0), 0.0, [0.5, 2.0, 5.0, 20.0]),  # up against the Gent limit
+        (ActuatorParams(gent_limit=15.0), 1e-5, [1.2, 0.0, 1.2]),  # big steps both ways
+        (ActuatorParams(top_thickness=0.25, side_thickness=0.25), 0.0, np.linspace(0, 1.2, 7)),  # thin walls
+    ]
+    for params, kobj, ps in cases:
+        path = load_path(ps, kobj, KO, params)
+        for eq in path.equilibria:
+            assert_minimum(eq, params)
+
+
+def test_fold_reports_snapped_and_big_step_lands_on_same_branch(params):
+    before = solve_equilibrium(0.6, 1e-4, KO, params)
+    assert before.curvature < 0.03 and not before.snapped
+    after = solve_equilibrium(0.8, 1e-4, KO, params, initial=before)
+    assert after.snapped and after.curvature > 0.3
+    direct = solve_equilibrium(0.8, 1e-4, KO, params)
+    assert direct.snapped
+    assert after.curvature == pytest.approx(direct.curvature, abs=1e-10)
+
+
+def test_initial_pair_with_and_without_pressure(params):
+    eq = solve_equilibrium(0.5, 1e-3, KO, params)
+    cont = solve_equilibrium(0.6, 1e-3, KO, params, initial=eq.state, initial_pressure=0.5)
+    desc = solve_equilibrium(0.6, 1e-3, KO, params, initial=eq.state)
+    ref = solve_equilibrium(0.6, 1e-3, KO, params)
+    for e in (cont, desc):
+        assert e.curvature == pytest.approx(ref.curvature, abs=1e-12)
+        assert_minimum(e, params)
+
+
+@pytest.mark.parametrize(
+    "kwargs, name",
+    [
+        ({"pressure": float("nan")}, "pressure"),
+        ({"pressure": -0.1}, "pressure"),
+        ({"pressure": float("inf")}, "pressure"),
+        ({"pressure": 0.5, "object_stiffness": -1e-3}, "object_stiffness"),
+        ({"pressure": 0.5, "object_stiffness": float("nan")}, "object_stiffness"),
+        ({"pressure": 0.5, "object_curvature": 0.0}, "object_curvature"),
+        ({"pressure": 0.5, "object_curvature": 4.0}, "object_curvature"),
+        ({"pressure": 0.5, "initial": (float("nan"), 0.0)}, "initial curvature"),
+        ({"pressure": 0.5, "initial": (-1.0, 0.0)}, "outside the domain"),
+        ({"pressure": 0.5, "initial": "abc"}, "initial"),
+    ],
+)
+def test_bad_solver_input_raises_naming_it(kwargs, name):
+    with pytest.raises(ValueError, match=name):
+        solve_equilibrium(**kwargs)
+
+
+def test_load_path_rejects_bad_pressures():
+    with pytest.raises(ValueError, match=r"pressures\[1\]"):
+        load_path([0.1, float("nan")])
+    with pytest.raises(ValueError, match=r"pressures\[0\]"):
+        load_path([-1.0])
