@@ -1,6 +1,6 @@
 """The dimensionless energy of one pneu-net chamber, with its analytic gradient and Hessian.
 
-This module is the one place the physics lives (``docs/model.md`` gives the equations). Lengths are
+This module is the one place the physics lives (``docs/physics.md`` gives the equations). Lengths are
 in units of the chamber width ``w``, moduli and pressure in units of the elastomer shear modulus
 ``mu``, energy in units of ``mu t w^2``. The state is ``x = (kappa~, e_s)``: the base curvature
 ``kappa~ = w kappa`` and the side-wall strain ``e_s``.

@@ -1,6 +1,6 @@
 """An independent high-precision reference for the equilibrium (mpmath, 30+ digits).
 
-Written directly from ``docs/model.md`` (the paper's eqs. 2.1-2.11 and supplement eq. 10), with none of
+Written directly from ``docs/physics.md`` (the paper's eqs. 2.1-2.11 and supplement eq. 10), with none of
 :mod:`pneunet_env.mechanics`'s code: the volume keeps the paper's ``csc + cot`` form (its ``1/kappa``
 cancellation is harmless at this precision), and the gradient and Hessian come from mpmath's numerical
 differentiation at high precision, not from the hand-derived formulas. It is slow (milliseconds per
