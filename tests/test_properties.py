@@ -15,7 +15,7 @@ from pneunet_env.solver import ACCEPT_GTOL
 @st.composite
 def actuators(draw):
     d = draw(st.floats(0.5, 2.0))
-    hb = draw(st.floats(0.1, 0.9))
+    hb = draw(st.floats(0.1, min(0.9, 2 * d - 0.25)))
     hm = draw(st.floats(0.1, min(0.9, 2 * d - hb - 0.05)))
     return ActuatorParams(
         chamber_height=d,
@@ -28,9 +28,12 @@ def actuators(draw):
     )
 
 
-stiffness = st.one_of(st.just(0.0), st.floats(-7.0, 0.5).map(lambda e: 10.0**e))
+# Objects up to k~ = 0.3 with w kappa_obj >= 0.01: the contact stiffness k~/kappa_obj^4 stays below 3e7, where
+# |grad| <= 1e-10 is attainable in double precision (one ulp of kappa moves the gradient by H * ulp ~ 5e-11).
+# test_solver.py checks what happens beyond that.
+stiffness = st.one_of(st.just(0.0), st.floats(-7.0, -0.5).map(lambda e: 10.0**e))
 pressure = st.floats(0.0, 2.0)
-curvature = st.floats(0.005, 0.2)
+curvature = st.floats(0.01, 0.2)
 
 
 def _is_minimum(eq, params) -> bool:

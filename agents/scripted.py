@@ -1,0 +1,98 @@
+"""Scripted, blind pressure schedules for ``PneuNetGrasp-v0``.
+
+Each policy maps the environment's observation (whose first entry is the normalised pressure
+``p / p_max``) to an action in ``Box(-1, 1, (1,))``; the environment turns an action ``a`` into the
+pressure change ``a * max_pressure_step_kpa``. The policies are deterministic and stateless (the
+pressure they read is their only memory), so one instance serves any number of episodes, and
+``predict`` accepts a batch of observations as well, like a stable-baselines3 model.
+
+Targets are fractions of ``max_pressure_kpa`` (the observation's units); :meth:`from_kpa` converts.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from pneunet_env.config import EnvConfig
+
+__all__ = ["LinearRamp", "StepPolicy"]
+
+
+class _TargetPolicy:
+    """Shared plumbing: a target pressure and the env's action scale."""
+
+    def __init__(self, target: float, config: EnvConfig | None = None) -> None:
+        target = float(target)
+        if not 0.0 <= target <= 1.0:
+            raise ValueError(f"target must be a fraction of max_pressure_kpa in [0, 1], got {target!r}")
+        config = EnvConfig() if config is None else config
+        self.target = target
+        # the change of p/p_max that an action of 1 makes
+        self.step_fraction = config.max_pressure_step_kpa / config.max_pressure_kpa
+
+    def _next(self, p: np.ndarray) -> np.ndarray:  # the pressure fraction wanted after this step
+        raise NotImplementedError
+
+    def __call__(self, observation) -> np.ndarray:
+        """The action for one observation (shape ``(1,)``) or a batch (shape ``(N, 1)``), float32."""
+        obs = np.asarray(observation, dtype=np.float64)
+        p = obs[..., 0]
+        a = (self._next(p) - p) / self.step_fraction
+        return np.clip(a, -1.0, 1.0)[..., None].astype(np.float32)
+
+    def predict(self, observation, state=None, episode_start=None, deterministic: bool = True):
+        """stable-baselines3's ``predict`` signature: ``(action, state)``."""
+        return self(observation), state
+
+    def reset(self) -> None:
+        """Nothing to reset (stateless); present for symmetry with stateful policies."""
+
+
+class LinearRamp(_TargetPolicy):
+    """Raise the pressure linearly from 0 to ``target`` over ``n_steps`` steps, then hold it.
+
+    Args:
+        target: the final pressure, a fraction of ``max_pressure_kpa`` in ``[0, 1]``.
+        n_steps: steps to reach it from 0 (at least 1). A ramp steeper than the largest step
+            (``max_pressure_step_kpa``) is limited by it.
+        config: the environment's config (for its action scale); the defaults if ``None``.
+    """
+
+    def __init__(self, target: float, n_steps: int, config: EnvConfig | None = None) -> None:
+        super().__init__(target, config)
+        if int(n_steps) != n_steps or n_steps < 1:
+            raise ValueError(f"n_steps must be an integer >= 1, got {n_steps!r}")
+        self.n_steps = int(n_steps)
+        self.increment = self.target / self.n_steps
+
+    @classmethod
+    def from_kpa(cls, target_kpa: float, n_steps: int, config: EnvConfig | None = None) -> LinearRamp:
+        config = EnvConfig() if config is None else config
+        return cls(target_kpa / config.max_pressure_kpa, n_steps, config)
+
+    def _next(self, p):
+        up = np.minimum(p + self.increment, self.target)
+        return np.where(p <= self.target, up, self.target)
+
+    def __repr__(self) -> str:
+        return f"LinearRamp(target={self.target:g}, n_steps={self.n_steps})"
+
+
+class StepPolicy(_TargetPolicy):
+    """Go to ``target`` as fast as the action allows (a pressure step), then hold it.
+
+    Args:
+        target: the pressure, a fraction of ``max_pressure_kpa`` in ``[0, 1]``.
+        config: the environment's config (for its action scale); the defaults if ``None``.
+    """
+
+    @classmethod
+    def from_kpa(cls, target_kpa: float, config: EnvConfig | None = None) -> StepPolicy:
+        config = EnvConfig() if config is None else config
+        return cls(target_kpa / config.max_pressure_kpa, config)
+
+    def _next(self, p):
+        return np.full_like(p, self.target)
+
+    def __repr__(self) -> str:
+        return f"StepPolicy(target={self.target:g})"

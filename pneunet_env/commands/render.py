@@ -1,0 +1,86 @@
+"""``pneunet-grasp render``: save PNG frames (and a contact sheet) of episodes under a pressure ramp.
+
+For each object stiffness ``k~`` (``--stiffness``, several allowed), one episode of ``PneuNetGrasp-v0``
+is run with the object pinned and the scripted :class:`agents.scripted.LinearRamp` to ``--target`` of
+``p_max`` over ``--steps`` steps; every frame is saved as ``OUT/frames/k<K>_<step>.png`` and a contact
+sheet (one row per stiffness, ``--columns`` frames evenly spaced in time) as ``OUT/sheet.png``.
+PNGs are written with :func:`pneunet_env.render.save_png` (zlib only; no matplotlib needed).
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+import numpy as np
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--out", required=True, type=Path, help="output folder (created)")
+    parser.add_argument("--stiffness", type=float, nargs="+", default=[1e-5, 1e-4, 1e-2],
+                        help="object stiffness(es) k~ = k_obj w/mu, one episode each (default 1e-5 1e-4 1e-2)")
+    parser.add_argument("--steps", type=int, default=40, help="ramp steps from 0 to the target (default 40)")
+    parser.add_argument("--target", type=float, default=1.0, help="ramp target, fraction of p_max (default 1)")
+    parser.add_argument("--columns", type=int, default=6, help="frames per stiffness on the sheet (default 6)")
+    parser.add_argument("--config", default=None, help="environment config YAML (default: the built-in defaults)")
+    parser.add_argument("--keep-going", action="store_true",
+                        help="do not end the episode on damage or slip (flagged, drawn in red), to see the whole ramp")
+    parser.add_argument("--width", type=int, default=None, help="frame width in px (default: the config's, 480)")
+    parser.add_argument("--height", type=int, default=None, help="frame height in px (default: the config's, 360)")
+    parser.add_argument("--seed", type=int, default=0, help="reset seed (default 0)")
+    parser.add_argument("--sheet", type=Path, default=None, help="also copy the contact sheet to this path")
+
+
+def run(args: argparse.Namespace) -> int:
+    import gymnasium as gym
+
+    import pneunet_env  # noqa: F401  (registers the environment)
+    from agents.scripted import LinearRamp
+
+    from ..render import contact_sheet, save_png
+
+    if args.steps < 1:
+        raise SystemExit(f"--steps must be >= 1, got {args.steps}")
+    if args.columns < 1:
+        raise SystemExit(f"--columns must be >= 1, got {args.columns}")
+    overrides = {"terminate_on_damage": False, "terminate_on_slip": False} if args.keep_going else {}
+    if args.width is not None:
+        overrides["render_width"] = args.width
+    if args.height is not None:
+        overrides["render_height"] = args.height
+    frames_dir = args.out / "frames"
+    frames_dir.mkdir(parents=True, exist_ok=True)
+    rows = []
+    for k in args.stiffness:
+        env = gym.make("PneuNetGrasp-v0", render_mode="rgb_array", config=args.config, **overrides)
+        policy = LinearRamp(args.target, args.steps, env.unwrapped.config)
+        obs, info = env.reset(seed=args.seed, options={"object_stiffness": k})
+        frames = [env.render()]
+        events = []
+        for t in range(1, args.steps + 1):
+            obs, _, terminated, truncated, info = env.step(policy(obs))
+            frames.append(env.render())
+            if info["damaged"] and not any(e.startswith("damaged") for e in events):
+                events.append(f"damaged at step {t}")
+            if terminated or truncated:
+                break
+        env.close()
+        for t, f in enumerate(frames):
+            save_png(frames_dir / f"k{k:.0e}_{t:03d}.png", f)
+        idx = np.unique(np.linspace(0, len(frames) - 1, args.columns).round().astype(int))
+        row = [frames[i] for i in idx]
+        row += [np.full_like(frames[0], 255)] * (args.columns - len(row))
+        rows.extend(row)
+        print(
+            f"k~={k:.1e}: {len(frames)} frames, final p={info['pressure_kpa']:.1f} kPa, "
+            f"curvature {info['curvature_per_m']:.1f} /m, traction {info['contact_force_kpa']:.3g} kPa"
+            + (f", {events[0]}" if events else "")
+        )
+    sheet = contact_sheet(rows, args.columns)
+    path = save_png(args.out / "sheet.png", sheet)
+    print(f"wrote {frames_dir}/*.png and {path}")
+    if args.sheet is not None:
+        args.sheet.parent.mkdir(parents=True, exist_ok=True)
+        save_png(args.sheet, sheet)
+        print(f"wrote {args.sheet}")
+    return 0

@@ -1,0 +1,146 @@
+"""The grasped object: an incompressible annular sector on a Winkler foundation (eqs. 2.9, 3.1, 3.2).
+
+The object is an arc of outer curvature ``kappa_obj`` and thickness ``H``, of an incompressible solid
+with shear modulus ``mu_obj``, density ``rho`` and failure strain ``eps_f``. Its Winkler stiffness (the
+traction per unit normal displacement of its surface) follows from eq. 3.2,
+
+    k_obj = 2 mu_obj kappa_obj (1/(1 - H kappa_obj)^2 - 1),
+
+computed by :func:`pneunet_env.units.object_stiffness_from_material`. :class:`GraspObject` holds the
+properties in physical units (what is sampled and reported) and their dimensionless counterparts (what
+the solver needs): ``k~ = k_obj w/mu``, ``w kappa_obj``, ``H/w``. Fields are floats for one object or
+numpy arrays of one shape for a batch.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+from .units import Scales, object_modulus_from_stiffness, object_stiffness_from_material
+
+__all__ = ["GraspObject", "stiffness_per_modulus", "DEFAULT_SCALES"]
+
+DEFAULT_SCALES = Scales()
+"""The paper's scales: ``w = 5 mm``, ``mu = 50 kPa``."""
+
+
+def _vectorised(fn):
+    vec = np.vectorize(fn, otypes=[float])
+
+    def call(*args, **kwargs):
+        if all(np.ndim(a) == 0 for a in args):
+            return fn(*(float(a) for a in args), **kwargs)
+        return vec(*args, **kwargs)
+
+    return call
+
+
+@_vectorised
+def _k_from_mu(shear_modulus_kpa, thickness_mm, curvature_per_m, scales=DEFAULT_SCALES):
+    return object_stiffness_from_material(shear_modulus_kpa, thickness_mm, curvature_per_m, scales)
+
+
+@_vectorised
+def _mu_from_k(stiffness, thickness_mm, curvature_per_m, scales=DEFAULT_SCALES):
+    return object_modulus_from_stiffness(stiffness, thickness_mm, curvature_per_m, scales)
+
+
+def stiffness_per_modulus(thickness_mm, curvature_per_m, scales: Scales = DEFAULT_SCALES):
+    """``k~`` per kPa of object shear modulus (eq. 3.2 is linear in ``mu_obj``); broadcasts."""
+    return _k_from_mu(1.0, thickness_mm, curvature_per_m, scales=scales)
+
+
+def _as(x):
+    """A float for a 0-d input, else a float array."""
+    a = np.asarray(x, dtype=float)
+    return float(a) if a.ndim == 0 else a
+
+
+@dataclass(frozen=True)
+class GraspObject:
+    """One object (float fields) or a batch (array fields of one shape).
+
+    Physical attributes (sampled, reported):
+        shear_modulus_kpa: ``mu_obj`` (kPa).
+        thickness_mm: ``H`` (mm).
+        curvature_per_m: outer curvature ``kappa_obj`` (1/m).
+        density_kg_m3: ``rho`` (kg/m^3).
+        failure_strain: ``eps_f``: the object fails at a stress ``eps_f E_obj = 3 eps_f mu_obj``.
+
+    Dimensionless attributes (derived):
+        stiffness: ``k~ = k_obj w/mu`` (eq. 3.2).
+        curvature: ``w kappa_obj``.
+        thickness: ``H/w``.
+    """
+
+    shear_modulus_kpa: float | np.ndarray
+    thickness_mm: float | np.ndarray
+    curvature_per_m: float | np.ndarray
+    density_kg_m3: float | np.ndarray
+    failure_strain: float | np.ndarray
+    stiffness: float | np.ndarray
+    curvature: float | np.ndarray
+    thickness: float | np.ndarray
+
+    @classmethod
+    def from_material(
+        cls,
+        shear_modulus_kpa,
+        thickness_mm,
+        curvature_per_m,
+        density_kg_m3=1000.0,
+        failure_strain=0.3,
+        scales: Scales = DEFAULT_SCALES,
+    ) -> GraspObject:
+        """The object of a given material and shape; validates (``ValueError`` naming the bad property)."""
+        _check_positive("density_kg_m3", density_kg_m3)
+        _check_positive("failure_strain", failure_strain)
+        args = (shear_modulus_kpa, thickness_mm, curvature_per_m, density_kg_m3, failure_strain)
+        if any(np.ndim(a) for a in args):
+            shear_modulus_kpa, thickness_mm, curvature_per_m, density_kg_m3, failure_strain = np.broadcast_arrays(
+                *(np.asarray(a, dtype=float) for a in args)
+            )
+        k = _k_from_mu(shear_modulus_kpa, thickness_mm, curvature_per_m, scales=scales)
+        c = np.asarray(curvature_per_m, dtype=float) * scales.width_mm * 1e-3
+        if np.any(c >= np.pi):
+            raise ValueError(f"object curvature_per_m={curvature_per_m!r} gives w kappa_obj >= pi")
+        return cls(
+            shear_modulus_kpa=_as(shear_modulus_kpa),
+            thickness_mm=_as(thickness_mm),
+            curvature_per_m=_as(curvature_per_m),
+            density_kg_m3=_as(density_kg_m3),
+            failure_strain=_as(failure_strain),
+            stiffness=_as(k),
+            curvature=_as(c),
+            thickness=_as(np.asarray(thickness_mm, dtype=float) / scales.width_mm),
+        )
+
+    @classmethod
+    def from_stiffness(
+        cls,
+        stiffness,
+        thickness_mm=10.0,
+        curvature_per_m=4.0,
+        density_kg_m3=1000.0,
+        failure_strain=0.3,
+        scales: Scales = DEFAULT_SCALES,
+    ) -> GraspObject:
+        """The object of a given dimensionless stiffness ``k~`` (its shear modulus from eq. 3.2 inverted)."""
+        mu = _mu_from_k(stiffness, thickness_mm, curvature_per_m, scales=scales)
+        obj = cls.from_material(mu, thickness_mm, curvature_per_m, density_kg_m3, failure_strain, scales)
+        # Keep the requested k~ exactly (the round trip through mu_obj may differ in the last bit).
+        k = np.broadcast_to(np.asarray(stiffness, dtype=float), np.shape(obj.stiffness))
+        return dataclasses.replace(obj, stiffness=_as(k.copy()))
+
+    def stiffness_kpa_per_mm(self, scales: Scales = DEFAULT_SCALES):
+        """``k_obj`` in kPa/mm (traction per mm of indentation) at the given scales."""
+        return self.stiffness * scales.shear_modulus_kpa / scales.width_mm
+
+
+def _check_positive(name, value):
+    a = np.asarray(value, dtype=float)
+    if not np.all(np.isfinite(a)) or np.any(a <= 0.0):
+        raise ValueError(f"object {name} must be finite and > 0, got {value!r}")
