@@ -77,6 +77,9 @@ def reference_minimum(
     Hessian is positive definite.
     """
     kobj, ko = check_object(object_stiffness, object_curvature)
+    if float(pressure) == 0.0:
+        # Every term but the pressure work is >= 0 and vanishes only at rest: the rest state is the exact minimum.
+        return 0.0, 0.0
     mp = _mp()
     with mp.workdps(digits + 10):
         f = lambda k, s: reference_energy(mp, k, s, pressure, params, kobj, ko)  # noqa: E731

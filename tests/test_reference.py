@@ -47,6 +47,10 @@ def test_near_the_fold_on_both_branches():
         assert abs(eq.side_strain - s) <= 1e-9 * abs(s)
 
 
+def test_reference_at_zero_pressure_is_rest():
+    assert reference_minimum(0.0, 1e-3, 0.02, ActuatorParams(), (1e-3, 1e-3)) == (0.0, 0.0)
+
+
 def test_reference_path_polishes_every_point():
     ks, ss = reference_path([0.2, 0.5, 0.8], 1e-3, 0.02, ActuatorParams(), digits=30, refine=5)
     assert len(ks) == 3 and all(0.0 < k < 0.03 for k in ks)
