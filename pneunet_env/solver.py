@@ -41,7 +41,11 @@ __all__ = [
     "solve_equilibrium",
     "load_path",
     "sym2_eig",
+    "sym2_eigvals",
     "ACCEPT_GTOL",
+    "step_state",
+    "params_tuple",
+    "PREDICTED_JUMP_FRACTION",
 ]
 
 ACCEPT_GTOL = 1e-10
@@ -105,6 +109,7 @@ class SolverOptions:
 
 
 DEFAULT_OPTIONS = SolverOptions()
+_DEFAULT_OPTIONS_TUPLE = DEFAULT_OPTIONS.as_tuple()
 
 
 @njit
@@ -126,14 +131,31 @@ def sym2_eig(a, b, c):
     return lmin, lmax, math.cos(t), math.sin(t)
 
 
-def make_solver(terms, jit=njit):
-    """Build ``(minimise, follow)`` for an energy kernel ``terms`` (see :func:`pneunet_env.mechanics.make_terms`).
+@njit
+def sym2_eigvals(a, b, c):
+    """``(lam_min, lam_max)`` of ``[[a, b], [b, c]]``, as :func:`sym2_eig` computes them (no eigenvectors)."""
+    m = 0.5 * (a + c)
+    r = math.hypot(0.5 * (a - c), b)
+    lmax = m + r
+    lmin = m - r
+    if m > 0.0 and lmax > 0.0:
+        lmin = (a * c - b * b) / lmax
+    elif m < 0.0 and lmin < 0.0:
+        lmax = (a * c - b * b) / lmin
+    return lmin, lmax
 
-    ``minimise(k, s, p, prm, kobj, ko, gtol, max_iter, eig_floor) -> (k, s, U, |g|, lam_min, iters, status)``
-    ``follow(k, s, p0, p1, prm, kobj, ko, opts) -> (k, s, U, |g|, lam_min, iters, substeps, snapped, status)``
 
-    ``prm`` is :meth:`ActuatorParams.as_tuple`, ``opts`` is :meth:`SolverOptions.as_tuple`; ``status``
-    indexes :data:`STATUS_MESSAGES`.
+PREDICTED_JUMP_FRACTION = 0.75
+"""A sub-step is sized so that the tangent predicts a state change of at most this fraction of ``max_jump``."""
+
+
+def _make_parts(terms, jit=njit):
+    """The solver's compiled pieces over ``terms``; see :func:`make_solver`.
+
+    Besides ``minimise`` and ``follow`` this returns ``evaluate`` (the kernel on a packed parameter
+    tuple), ``descend`` (the Newton descent from a point whose evaluation is already known, returning
+    the evaluation at its result too, so no point is evaluated twice) and ``follow_ev`` (``follow``
+    plus that final evaluation, from which the volume change is read).
     """
 
     @jit
@@ -141,12 +163,14 @@ def make_solver(terms, jit=njit):
         return terms(k, s, p, prm[0], prm[1], prm[2], prm[3], prm[4], prm[5], prm[6], kobj, ko)
 
     @jit
-    def minimise(k, s, p, prm, kobj, ko, gtol, max_iter, eig_floor):
-        ok, U, g0, g1, hkk, hks, hss, _, _, _ = evaluate(k, s, p, prm, kobj, ko)
+    def descend(k, s, p, prm, kobj, ko, gtol, max_iter, eig_floor, ev, k0, s0, radius):
+        # A finite radius marks a corrector: it gives up (status 2) once an iterate is farther than radius
+        # from (k0, s0) or has a Hessian that is not positive definite.
+        ok, U, g0, g1, hkk, hks, hss, _, _, _ = ev
         if not ok:
-            return k, s, math.inf, math.inf, -math.inf, 0, 5
+            return k, s, math.inf, math.inf, -math.inf, 0, 5, ev
         gnorm = math.hypot(g0, g1)
-        lmin, lmax, ct, st = sym2_eig(hkk, hks, hss)
+        lmin, lmax = sym2_eigvals(hkk, hks, hss)
         it = 0
         status = 2
         while True:
@@ -156,34 +180,48 @@ def make_solver(terms, jit=njit):
             if it >= max_iter:
                 break
             it += 1
-            # Modified Newton direction -|H|^{-1} g on the eigenbasis.
+            # Modified Newton direction -|H|^{-1} g, |H| with eigenvalues max(|lambda|, floor): where H is
+            # safely positive definite that is the Newton direction itself, solved directly; elsewhere it is
+            # built on the eigenbasis.
             scale = max(abs(lmin), abs(lmax), 1.0)
-            l1 = max(abs(lmin), eig_floor * scale)
-            l2 = max(abs(lmax), eig_floor * scale)
-            a2 = g0 * ct + g1 * st
-            a1 = -g0 * st + g1 * ct
-            d0 = -(a2 / l2) * ct + (a1 / l1) * st
-            d1 = -(a2 / l2) * st - (a1 / l1) * ct
-            slope = g0 * d0 + g1 * d1
-            if lmin <= 0.0 and gnorm <= 1e3 * gtol:
-                # (Near-)stationary but not a minimum: leave along the negative-curvature direction.
-                v0, v1 = -st, ct
-                step = 1e-3 * max(1.0, abs(k))
-                if g0 * v0 + g1 * v1 > 0.0:
-                    step = -step
-                d0, d1 = step * v0, step * v1
-                slope = min(g0 * d0 + g1 * d1, 0.0)
+            if lmin >= eig_floor * scale:
+                det = hkk * hss - hks * hks
+                d0 = (hks * g1 - hss * g0) / det
+                d1 = (hks * g0 - hkk * g1) / det
+                slope = g0 * d0 + g1 * d1
+            else:
+                _, _, ct, st = sym2_eig(hkk, hks, hss)
+                l1 = max(abs(lmin), eig_floor * scale)
+                l2 = max(abs(lmax), eig_floor * scale)
+                a2 = g0 * ct + g1 * st
+                a1 = -g0 * st + g1 * ct
+                d0 = -(a2 / l2) * ct + (a1 / l1) * st
+                d1 = -(a2 / l2) * st - (a1 / l1) * ct
+                slope = g0 * d0 + g1 * d1
+                if lmin <= 0.0 and gnorm <= 1e3 * gtol:
+                    # (Near-)stationary but not a minimum: leave along the negative-curvature direction.
+                    v0, v1 = -st, ct
+                    step = 1e-3 * max(1.0, abs(k))
+                    if g0 * v0 + g1 * v1 > 0.0:
+                        step = -step
+                    d0, d1 = step * v0, step * v1
+                    slope = min(g0 * d0 + g1 * d1, 0.0)
             t = 1.0
             accepted = False
+            kn, sn, nnorm, evn = k, s, gnorm, ev
             while t > 1e-14:
                 kn = k + t * d0
                 sn = s + t * d1
-                okn, Un, n0, n1, nkk, nks, nss, _, _, _ = evaluate(kn, sn, p, prm, kobj, ko)
-                if okn:
-                    nnorm = math.hypot(n0, n1)
+                if kn < 0.0:
+                    # Project onto the domain's edge kappa~ = 0, where the rest state (p~ = 0) lies: else every
+                    # Newton step towards it overshoots and is halved, and the descent only converges linearly.
+                    kn = 0.0
+                evn = evaluate(kn, sn, p, prm, kobj, ko)
+                if evn[0]:
+                    nnorm = math.hypot(evn[2], evn[3])
                     # Armijo; at round-off level the energy cannot rank points, so fall back on |grad|.
-                    if Un <= U + 1e-4 * t * slope or (
-                        abs(Un - U) <= 1e-13 * max(1.0, abs(U)) and nnorm < gnorm
+                    if evn[1] <= U + 1e-4 * t * slope or (
+                        abs(evn[1] - U) <= 1e-13 * max(1.0, abs(U)) and nnorm < gnorm
                     ):
                         accepted = True
                         break
@@ -192,43 +230,66 @@ def make_solver(terms, jit=njit):
                 status = 3
                 break
             moved = abs(kn - k) + abs(sn - s)
-            k, s, U, g0, g1, hkk, hks, hss, gnorm = kn, sn, Un, n0, n1, nkk, nks, nss, nnorm
-            lmin, lmax, ct, st = sym2_eig(hkk, hks, hss)
+            ev = evn
+            k, s, U, g0, g1, hkk, hks, hss, gnorm = kn, sn, evn[1], evn[2], evn[3], evn[4], evn[5], evn[6], nnorm
+            lmin, lmax = sym2_eigvals(hkk, hks, hss)
             if moved == 0.0:
                 status = 4
                 break
+            if radius < math.inf and (lmin <= 0.0 or max(abs(k - k0), abs(s - s0)) > radius):
+                break  # a corrector that leaves the branch's convex neighbourhood: the sub-step was too long
         if status != 0 and gnorm <= 1e-10 and lmin > 0.0:
             status = 1
-        return k, s, U, gnorm, lmin, it, status
+        return k, s, U, gnorm, lmin, it, status, ev
 
     @jit
-    def follow(k, s, p0, p1, prm, kobj, ko, opts):
+    def minimise(k, s, p, prm, kobj, ko, gtol, max_iter, eig_floor):
+        r = descend(k, s, p, prm, kobj, ko, gtol, max_iter, eig_floor, evaluate(k, s, p, prm, kobj, ko), k, s, math.inf)
+        return r[0], r[1], r[2], r[3], r[4], r[5], r[6]
+
+    @jit
+    def follow_ev(k, s, p0, p1, prm, kobj, ko, opts):
         gtol, max_iter, corr_iter, max_step, min_step, max_jump, eig_floor = opts
-        # Polish the start so that the tangent is taken at an equilibrium.
-        k, s, U, gn, lmin, iters, status = minimise(k, s, p0, prm, kobj, ko, gtol, max_iter, eig_floor)
+        # Polish the start so that the tangent is taken at an equilibrium (at an equilibrium: one evaluation).
+        k, s, U, gn, lmin, iters, status, ev = descend(
+            k, s, p0, prm, kobj, ko, gtol, max_iter, eig_floor, evaluate(k, s, p0, prm, kobj, ko), k, s, math.inf
+        )
         substeps = 0
         snapped = False
         p = p0
         h = min(abs(p1 - p0), max_step)
         sign = 1.0 if p1 >= p0 else -1.0
         while p != p1 and status <= 1:
+            # Tangent dx/dp = H^{-1} dV/dx at the current equilibrium, where the Hessian is positive definite.
+            hkk, hks, hss, vk, vs = ev[4], ev[5], ev[6], ev[8], ev[9]
+            det = hkk * hss - hks * hks
+            tangent = hkk > 0.0 and det > 0.0
+            tk = ts = 0.0
+            if tangent:
+                tk = (hss * vk - hks * vs) / det
+                ts = (hkk * vs - hks * vk) / det
+                rate = max(abs(tk), abs(ts))
+                # Size the sub-step so that the predicted change stays well inside max_jump.
+                if h * rate > PREDICTED_JUMP_FRACTION * max_jump:
+                    h = max(PREDICTED_JUMP_FRACTION * max_jump / rate, min_step)
             remaining = abs(p1 - p)
             pt = p1 if h >= remaining * (1.0 - 1e-12) else p + sign * h
-            # Tangent predictor dx/dp = H^{-1} dV/dx, where the Hessian is positive definite.
-            ok, _, _, _, hkk, hks, hss, _, vk, vs = evaluate(k, s, p, prm, kobj, ko)
-            kp, sp = k, s
-            det = hkk * hss - hks * hks
-            if hkk > 0.0 and det > 0.0:
-                kc = k + (pt - p) * (hss * vk - hks * vs) / det
-                sc = s + (pt - p) * (hkk * vs - hks * vk) / det
-                if evaluate(kc, sc, pt, prm, kobj, ko)[0]:
-                    kp, sp = kc, sc
-            r = minimise(kp, sp, pt, prm, kobj, ko, gtol, corr_iter, eig_floor)
+            started = False
+            if tangent:
+                kc = k + (pt - p) * tk
+                sc = s + (pt - p) * ts
+                evc = evaluate(kc, sc, pt, prm, kobj, ko)
+                if evc[0]:
+                    r = descend(kc, sc, pt, prm, kobj, ko, gtol, corr_iter, eig_floor, evc, k, s, max_jump)
+                    started = True
+            if not started:
+                evs = evaluate(k, s, pt, prm, kobj, ko)
+                r = descend(k, s, pt, prm, kobj, ko, gtol, corr_iter, eig_floor, evs, k, s, max_jump)
             iters += r[5]
             jump = max(abs(r[0] - k), abs(r[1] - s))
             if r[6] <= 1 and jump <= max_jump:
                 p = pt
-                k, s, U, gn, lmin, status = r[0], r[1], r[2], r[3], r[4], r[6]
+                k, s, U, gn, lmin, status, ev = r[0], r[1], r[2], r[3], r[4], r[6], r[7]
                 substeps += 1
                 if r[5] <= 4:
                     h = min(2.0 * h, max_step)
@@ -237,22 +298,52 @@ def make_solver(terms, jit=njit):
                 h = max(0.25 * h, min_step)
                 continue
             # The branch ends within min_step of pressure: a fold. Descend to the minimum that remains.
-            r = minimise(k, s, pt, prm, kobj, ko, gtol, max_iter, eig_floor)
+            evs = evaluate(k, s, pt, prm, kobj, ko)
+            r = descend(k, s, pt, prm, kobj, ko, gtol, max_iter, eig_floor, evs, k, s, math.inf)
             iters += r[5]
             substeps += 1
             if max(abs(r[0] - k), abs(r[1] - s)) > max_jump:
                 snapped = True
             p = pt
-            k, s, U, gn, lmin, status = r[0], r[1], r[2], r[3], r[4], r[6]
+            k, s, U, gn, lmin, status, ev = r[0], r[1], r[2], r[3], r[4], r[6], r[7]
             h = 0.1 * max_step
-        return k, s, U, gn, lmin, iters, substeps, snapped, status
+        return k, s, U, gn, lmin, iters, substeps, snapped, status, ev[7] if ev[0] else math.nan
 
-    return minimise, follow
+    @jit
+    def follow(k, s, p0, p1, prm, kobj, ko, opts):
+        r = follow_ev(k, s, p0, p1, prm, kobj, ko, opts)
+        return r[0], r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8]
+
+    return evaluate, descend, minimise, follow_ev, follow
 
 
-_minimise, _follow = make_solver(mechanics.make_terms(
+def make_solver(terms, jit=njit):
+    """Build ``(minimise, follow)`` for an energy kernel ``terms`` (see :func:`pneunet_env.mechanics.make_terms`).
+
+    ``minimise(k, s, p, prm, kobj, ko, gtol, max_iter, eig_floor) -> (k, s, U, |g|, lam_min, iters, status)``
+    ``follow(k, s, p0, p1, prm, kobj, ko, opts) -> (k, s, U, |g|, lam_min, iters, substeps, snapped, status)``
+
+    ``prm`` is :meth:`ActuatorParams.as_tuple`, ``opts`` is :meth:`SolverOptions.as_tuple`; ``status``
+    indexes :data:`STATUS_MESSAGES`.
+    """
+    parts = _make_parts(terms, jit)
+    return parts[2], parts[4]
+
+
+_evaluate, _descend, _minimise, _follow_ev, _follow = _make_parts(mechanics.make_terms(
     math.log, math.sin, math.cos, njit(mechanics._swhere), njit(mechanics._smax), abs, jit=njit
 )[1])
+step_state = _follow_ev
+"""The fast entry point: ``step_state(kappa~, e_s, p0, p1, prm, k~_obj, w kappa_obj, opts)`` returns
+``(kappa~, e_s, U, |grad|, lam_min, iterations, substeps, snapped, status, volume_change)``.
+
+It is the compiled continuation behind :func:`solve_equilibrium` (same arguments as ``follow``, see
+:func:`make_solver`), from an equilibrium ``(kappa~, e_s)`` at ``p0`` to ``p1``, with no validation and
+no objects built: for callers on a hot path (an env's step), about a microsecond for a small pressure
+step with numba. ``prm`` is :func:`params_tuple`, ``opts`` :meth:`SolverOptions.as_tuple`; ``status``
+indexes :data:`STATUS_MESSAGES` (``<= 1``: converged); ``volume_change`` is ``(V1 - V0)/(w^2 t)`` at the
+result (NaN only if the start was outside the domain). Inputs must already be valid (finite,
+``p >= 0``, ``k~_obj >= 0``, ``0 < w kappa_obj < pi``, the start in the domain)."""
 
 
 @dataclass(frozen=True)
@@ -313,28 +404,24 @@ def check_pressure(pressure: float, name: str = "pressure") -> float:
     return p
 
 
-def _equilibrium(p, out, params: ActuatorParams, kobj, kc) -> Equilibrium:
-    k, s, U, gn, lmin, iters, substeps, snapped, status = out
-    delta = max(k - kc, 0.0) / (max(k, kc) * kc)
+_DEFAULT_PARAMS = ActuatorParams()
+
+
+def params_tuple(params: ActuatorParams | None) -> tuple[float, ...]:
+    """:meth:`ActuatorParams.as_tuple` ``(d, h_b, h_s, h_m, E_b, nu, J)`` without its deep copy; ``None``: defaults."""
+    if params is None:
+        params = _DEFAULT_PARAMS
+    return (params.chamber_height, params.base_thickness, params.side_thickness, params.top_thickness,
+            params.base_modulus, params.poisson_ratio, params.gent_limit)
+
+
+def _equilibrium(p, out, d, kobj, kc) -> Equilibrium:
+    """Build the :class:`Equilibrium` of a :func:`step_state` result (``d`` = chamber height)."""
+    k, s, U, gn, lmin, iters, substeps, snapped, status, dv = out
+    delta = (k - kc) / (k * kc) if (k > kc and kobj > 0.0) else 0.0  # no object (k~ = 0): no indentation
     return Equilibrium(
-        pressure=p,
-        curvature=float(k),
-        side_strain=float(s),
-        top_strain=float(params.chamber_height * (1.0 + s) * k),
-        contact_force=kobj * delta,
-        indentation=delta,
-        in_contact=bool(kobj > 0.0 and k > kc),
-        volume_change=float(mechanics.volume_change(k, s, params)),
-        energy=float(U),
-        gradient_norm=float(gn),
-        min_eigenvalue=float(lmin),
-        converged=bool(status <= 1),
-        iterations=int(iters),
-        substeps=int(substeps),
-        snapped=bool(snapped),
-        status=STATUS_MESSAGES[int(status)],
-        object_stiffness=kobj,
-        object_curvature=kc,
+        p, k, s, d * (1.0 + s) * k, kobj * delta, delta, kobj > 0.0 and k > kc, dv, U, gn, lmin, status <= 1,
+        iters, substeps, snapped, STATUS_MESSAGES[status], kobj, kc,
     )
 
 
@@ -344,7 +431,7 @@ def minimise_state(x0, pressure, params, object_stiffness=0.0, object_curvature=
     Returns ``(kappa~, e_s, U, |grad|, lam_min, iterations, status)``.
     """
     o = options
-    return _minimise(float(x0[0]), float(x0[1]), float(pressure), params.as_tuple(), float(object_stiffness),
+    return _minimise(float(x0[0]), float(x0[1]), float(pressure), params_tuple(params), float(object_stiffness),
                      float(object_curvature), o.gtol, o.max_iter, o.eig_floor)
 
 
@@ -373,15 +460,17 @@ def solve_equilibrium(
     Returns:
         An :class:`Equilibrium`. ``converged`` is false only if the minimiser failed; the state is
         then the last iterate (finite, in the domain), never NaN.
+
+    A hot loop that needs no :class:`Equilibrium` can call the compiled :func:`step_state` directly.
     """
-    params = ActuatorParams() if params is None else params
+    prm = params_tuple(params)
     p = check_pressure(pressure)
     kobj, kc = check_object(object_stiffness, object_curvature)
-    p0: float | None
+    opts = _DEFAULT_OPTIONS_TUPLE if options is DEFAULT_OPTIONS else options.as_tuple()
     if initial is None:
-        x0, p0 = (0.0, 0.0), 0.0
+        out = step_state(0.0, 0.0, 0.0, p, prm, kobj, kc, opts)
     elif isinstance(initial, Equilibrium):
-        x0, p0 = initial.state, initial.pressure
+        out = step_state(initial.curvature, initial.side_strain, initial.pressure, p, prm, kobj, kc, opts)
     else:
         try:
             x0 = (check_finite("initial curvature", initial[0]), check_finite("initial side_strain", initial[1]))
@@ -389,16 +478,18 @@ def solve_equilibrium(
             raise ValueError(
                 f"initial must be None, an Equilibrium or a (curvature, side_strain) pair, got {initial!r}"
             ) from None
-        if not bool(mechanics.in_domain(x0[0], x0[1], params)):
+        if not _evaluate(x0[0], x0[1], 0.0, prm, 0.0, 1.0)[0]:
             raise ValueError(f"initial state (curvature={x0[0]!r}, side_strain={x0[1]!r}) is outside the domain")
-        p0 = None if initial_pressure is None else check_pressure(initial_pressure, "initial_pressure")
-    if p0 is None:
-        r = minimise_state(x0, p, params, kobj, kc, options)
-        snapped = max(abs(r[0] - x0[0]), abs(r[1] - x0[1])) > options.max_jump
-        out = (r[0], r[1], r[2], r[3], r[4], r[5], 0, snapped, r[6])
-    else:
-        out = _follow(x0[0], x0[1], p0, p, params.as_tuple(), kobj, kc, options.as_tuple())
-    return _equilibrium(p, out, params, kobj, kc)
+        if initial_pressure is not None:
+            p0 = check_pressure(initial_pressure, "initial_pressure")
+            out = step_state(x0[0], x0[1], p0, p, prm, kobj, kc, opts)
+        else:
+            o = options
+            r = _minimise(x0[0], x0[1], p, prm, kobj, kc, o.gtol, o.max_iter, o.eig_floor)
+            snapped = max(abs(r[0] - x0[0]), abs(r[1] - x0[1])) > o.max_jump
+            dv = _evaluate(r[0], r[1], p, prm, kobj, kc)[7]
+            out = (r[0], r[1], r[2], r[3], r[4], r[5], 0, snapped, r[6], dv)
+    return _equilibrium(p, out, prm[0], kobj, kc)
 
 
 @dataclass(frozen=True)

@@ -167,3 +167,25 @@ def test_load_path_rejects_bad_pressures():
         load_path([0.1, float("nan")])
     with pytest.raises(ValueError, match=r"pressures\[0\]"):
         load_path([-1.0])
+
+
+def test_free_actuator_has_no_contact_or_indentation(params):
+    eq = solve_equilibrium(1.0, 0.0, KO, params)
+    assert eq.curvature > KO
+    assert not eq.in_contact and eq.indentation == 0.0 and eq.contact_force == 0.0
+
+
+def test_round_off_floor_beyond_double_precision_is_reported_not_hidden():
+    """k~/kappa_obj^4 ~ 3e8: one ulp of kappa moves the gradient by ~5e-10, so |grad| <= 1e-10 is unreachable.
+
+    The solver must not call that converged: it reports it (and the state is still finite, in the domain,
+    a descent from rest, with a positive-definite Hessian).
+    """
+    params = ActuatorParams(base_modulus=5.0, poisson_ratio=0.0, gent_limit=1.0)
+    eq = solve_equilibrium(1.0, 1.0, 2.0**-7, params)
+    d = mechanics.energy_grad_hess(eq.curvature, eq.side_strain, 1.0, params, 1.0, 2.0**-7)
+    assert np.isfinite(d.energy) and np.linalg.eigvalsh(d.hessian).min() > 0
+    assert eq.converged == (eq.gradient_norm <= ACCEPT_GTOL)
+    if not eq.converged:
+        assert eq.status != "converged"
+    assert abs(eq.curvature - 2.0**-7) < 1e-9  # pinned at the kink of contact onset, as it should be
