@@ -27,5 +27,6 @@ if ENV_ID not in _gym.registry:
     _gym.register(
         id=ENV_ID,
         entry_point="pneunet_env.env:PneuNetGraspEnv",
+        vector_entry_point="pneunet_env.vector_env:PneuNetGraspVectorEnv",
         max_episode_steps=EnvConfig().episode_steps,
     )

@@ -11,8 +11,8 @@ from gymnasium import spaces
 
 from . import task
 from .config import EnvConfig, load_config
-from .params import ActuatorParams
-from .solver import Equilibrium, SolverOptions, solve_equilibrium
+from .params import ActuatorParams, check_object
+from .solver import Equilibrium, SolverOptions, params_tuple, solve_equilibrium, step_state
 
 __all__ = ["PneuNetGraspEnv", "free_volume_change"]
 
@@ -146,6 +146,9 @@ class PneuNetGraspEnv(gym.Env):
         self._params = cfg.actuator_params
         self._options = cfg.solver_options
         self._task = task.TaskParams.from_config(cfg)
+        # The hot path calls the compiled continuation directly with these (see step()).
+        self._prm = params_tuple(self._params)
+        self._opts = self._options.as_tuple()
         self._volume_scale = (
             free_volume_change(self._params, cfg.pressure_max, self._options) if cfg.observe_volume else None
         )
@@ -156,9 +159,10 @@ class PneuNetGraspEnv(gym.Env):
             )
         else:
             self.observation_space = spaces.Box(0.0, 1.0, (1,), np.float32)
-        self._eq: Equilibrium | None = None
+        self._eq: task.SolvedState | None = None
         self._obj = None
         self._thresholds = None
+        self._static_info: dict[str, Any] | None = None
         self._state = task.initial_state()
         self._outcome: task.Outcome | None = None
         self._viewer = None
@@ -171,8 +175,22 @@ class PneuNetGraspEnv(gym.Env):
 
     @property
     def equilibrium(self) -> Equilibrium | None:
-        """The current quasi-static state."""
-        return self._eq
+        """The current quasi-static state (an :class:`~pneunet_env.solver.Equilibrium`, built on request)."""
+        if self._eq is None:
+            return None
+        return Equilibrium(*self._eq, self._obj.stiffness, self._obj.curvature)
+
+    def _solve(self, kappa: float, side_strain: float, p0: float, p1: float) -> task.SolvedState:
+        """The continuation from ``(kappa~, e_s)`` at ``p0`` to ``p1`` for the current object, as a SolvedState.
+
+        What :func:`pneunet_env.solve_equilibrium` computes, without its argument checks (the pressure comes
+        from :func:`task.update_pressure`, the object was checked at reset) or its dataclass: a step's cost is
+        mostly Python overhead, and this is the hot path.
+        """
+        obj = self._obj
+        r = step_state(kappa, side_strain, p0, p1, self._prm, obj.stiffness, obj.curvature, self._opts)
+        return task.solved_state(p1, r[0], r[1], r[9], r[2], r[3], r[4], r[5], r[6], r[7], r[8], obj.stiffness,
+                                 obj.curvature, self._prm[0])
 
     # ---- Gymnasium API -----------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
@@ -180,13 +198,16 @@ class PneuNetGraspEnv(gym.Env):
         if options is not None and not isinstance(options, dict):
             raise ValueError(f"options must be a dict of object properties to pin, got {options!r}")
         obj = task.sample_object(self.np_random, self.config, pinned=options)
+        check_object(obj.stiffness, obj.curvature)
         self._obj = obj
         self._thresholds = task.object_thresholds(obj, self._task)
-        self._eq = solve_equilibrium(0.0, obj.stiffness, obj.curvature, self._params, options=self._options)
+        self._static_info = task.object_info(obj, self._thresholds, self._task)
+        self._eq = self._solve(0.0, 0.0, 0.0, 0.0)  # the rest state (what solve_equilibrium(0.0, ...) returns)
         self._state = task.initial_state()
         self._outcome = None
         obs = task.observation(self._eq.pressure, self._eq.volume_change, self._task, self._volume_scale)
-        info = task.build_info(self._eq, self._eq, obj, self._thresholds, self._state, self._task)
+        info = task.build_info(self._eq, self._eq, obj, self._thresholds, self._state, self._task,
+                               static=self._static_info)
         if self.render_mode == "human":
             self.render()
         return obs, info
@@ -194,18 +215,20 @@ class PneuNetGraspEnv(gym.Env):
     def step(self, action):
         if self._eq is None:
             raise RuntimeError("call reset() before step()")
-        try:
-            a = np.asarray(action, dtype=np.float64)
-        except (TypeError, ValueError):
-            raise ValueError(f"action must be a real number (shape (1,)), got {action!r}") from None
-        if a.size != 1:
-            raise ValueError(f"action must hold one number (shape (1,)), got shape {a.shape}: {action!r}")
+        if type(action) is np.ndarray and action.shape == (1,) and action.dtype.kind == "f":
+            a = float(action[0])  # the common case (an action_space sample, a policy's output), exactly
+        else:
+            try:
+                arr = np.asarray(action, dtype=np.float64)
+            except (TypeError, ValueError):
+                raise ValueError(f"action must be a real number (shape (1,)), got {action!r}") from None
+            if arr.size != 1:
+                raise ValueError(f"action must hold one number (shape (1,)), got shape {arr.shape}: {action!r}")
+            a = arr.item()
         prev = self._eq
-        pressure, clipped = task.update_pressure(prev.pressure, a.item(), self._task)  # raises on NaN/inf
+        pressure, clipped = task.update_pressure(prev.pressure, a, self._task)  # raises on NaN/inf
         obj = self._obj
-        solve = solve_equilibrium(
-            float(pressure), obj.stiffness, obj.curvature, self._params, initial=prev, options=self._options
-        )
+        solve = self._solve(prev.curvature, prev.side_strain, prev.pressure, pressure)
         failed = not solve.converged
         eq = prev if failed else solve
         self._eq = eq
@@ -215,7 +238,8 @@ class PneuNetGraspEnv(gym.Env):
         self._state = out.state
         self._outcome = out
         obs = task.observation(eq.pressure, eq.volume_change, self._task, self._volume_scale)
-        info = task.build_info(eq, solve, obj, self._thresholds, out.state, self._task, out, bool(clipped), failed)
+        info = task.build_info(eq, solve, obj, self._thresholds, out.state, self._task, out, bool(clipped), failed,
+                               static=self._static_info)
         terminated, truncated = bool(out.terminated), bool(out.truncated)
         if terminated or truncated:
             info["is_success"] = bool(out.success)

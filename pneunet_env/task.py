@@ -49,6 +49,7 @@ import numpy as np
 
 from .config import LOG_UNIFORM_FIELDS, RANGE_FIELDS, EnvConfig
 from .objects import GraspObject
+from .solver import STATUS_MESSAGES
 
 __all__ = [
     "TaskParams",
@@ -57,6 +58,10 @@ __all__ = [
     "Outcome",
     "PIN_KEYS",
     "sample_object",
+    "object_from_uniforms",
+    "SolvedState",
+    "solved_state",
+    "object_info",
     "object_thresholds",
     "check_action",
     "update_pressure",
@@ -155,12 +160,31 @@ def sample_object(
         ValueError: an unknown pin key, conflicting pins, or an invalid value (named).
     """
     shape: tuple[int, ...] = () if size is None else tuple(np.atleast_1d(size).astype(int))
-    u = rng.random((len(RANGE_FIELDS),) + shape)
+    return object_from_uniforms(rng.random((len(RANGE_FIELDS),) + shape), config, pinned, batch=size is not None)
+
+
+def object_from_uniforms(
+    u: np.ndarray, config: EnvConfig, pinned: Mapping[str, Any] | None = None, batch: bool | None = None
+) -> GraspObject:
+    """The object of the uniform draws ``u`` (shape ``(5,)``: one object; ``(5,) + shape``: a batch).
+
+    The pure half of :func:`sample_object` (which is ``object_from_uniforms(rng.random((5,) + shape), ...)``):
+    a batched environment draws ``u`` from each sub-environment's own stream and maps them here.
+    ``batch=None`` infers it from ``u.ndim``; ``batch=True`` with ``u.shape == (5,)`` gives 0-d array fields.
+    A batch is computed with array operations (no loop over objects); its values equal the single-object
+    ones to round-off (numpy's vectorised ``**`` may differ from the scalar one in the last bit).
+    """
+    u = np.asarray(u, dtype=float)
+    if u.ndim == 0 or u.shape[0] != len(RANGE_FIELDS):
+        raise ValueError(f"u must have shape ({len(RANGE_FIELDS)},) + batch shape, got {u.shape}")
+    shape = u.shape[1:]
+    if batch is None:
+        batch = bool(shape)
     values: dict[str, Any] = {}
     for i, name in enumerate(RANGE_FIELDS):
         lo, hi = getattr(config, name)
         v = lo * (hi / lo) ** u[i] if name in LOG_UNIFORM_FIELDS else lo + (hi - lo) * u[i]
-        values[name] = float(v) if size is None else v
+        values[name] = v if batch else float(v)
     pins = {k: v for k, v in (pinned or {}).items() if v is not None}
     unknown = sorted(set(pins) - set(PIN_KEYS))
     if unknown:
@@ -172,9 +196,9 @@ def sample_object(
     for key in ("object_shear_modulus_kpa", "object_thickness_mm", "object_curvature_per_m",
                 "object_density_kg_m3", "object_failure_strain"):
         if key in pins:
-            values[key] = _pin(key, pins[key], shape)
+            values[key] = _pin(key, pins[key], shape, batch)
     if "object_curvature" in pins:
-        values["object_curvature_per_m"] = _pin("object_curvature", pins["object_curvature"], shape) / (
+        values["object_curvature_per_m"] = _pin("object_curvature", pins["object_curvature"], shape, batch) / (
             config.width_mm * 1e-3
         )
     common = dict(
@@ -184,12 +208,65 @@ def sample_object(
         failure_strain=values["object_failure_strain"],
         scales=config.scales,
     )
+    if not batch:
+        if "object_stiffness" in pins:
+            return GraspObject.from_stiffness(_pin("object_stiffness", pins["object_stiffness"], shape), **common)
+        return GraspObject.from_material(values["object_shear_modulus_kpa"], **common)
     if "object_stiffness" in pins:
-        return GraspObject.from_stiffness(_pin("object_stiffness", pins["object_stiffness"], shape), **common)
-    return GraspObject.from_material(values["object_shear_modulus_kpa"], **common)
+        return _batch_object(None, _pin("object_stiffness", pins["object_stiffness"], shape, batch), **common)
+    return _batch_object(values["object_shear_modulus_kpa"], None, **common)
 
 
-def _pin(key: str, value: Any, shape: tuple[int, ...]):
+def _first_bad(name: str, value: np.ndarray, bad: np.ndarray, rule: str) -> None:
+    if np.any(bad):
+        v = value[np.nonzero(bad)] if value.ndim else value
+        raise ValueError(f"object {name} {rule}, got {float(np.ravel(v)[0])!r}")
+
+
+def _batch_object(shear_modulus_kpa, stiffness, thickness_mm, curvature_per_m, density_kg_m3, failure_strain,
+                  scales) -> GraspObject:
+    """:meth:`GraspObject.from_material` (``stiffness=None``) or :meth:`~GraspObject.from_stiffness` for a batch.
+
+    The same checks and the same formulas (eq. 3.2 in :func:`pneunet_env.units.object_stiffness_from_material`),
+    as array operations instead of a loop over objects; ``ValueError`` names the first bad value.
+    """
+    given = shear_modulus_kpa if stiffness is None else stiffness
+    arrays = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in (
+        given, thickness_mm, curvature_per_m, density_kg_m3, failure_strain)))
+    given, H_mm, kap, rho, eps = (np.array(a) for a in arrays)  # own, writable copies
+    with np.errstate(all="ignore"):
+        for name, v in (("density_kg_m3", rho), ("failure_strain", eps)):
+            _first_bad(name, v, ~np.isfinite(v) | (v <= 0.0), "must be finite and > 0")
+        for name, v in (("thickness_mm", H_mm), ("curvature_per_m", kap)):
+            _first_bad(name, v, ~np.isfinite(v) | (v <= 0.0), "must be finite and > 0")
+        label = "shear_modulus_kpa" if stiffness is None else "stiffness (k~)"
+        _first_bad(label, given, ~np.isfinite(given) | (given < 0.0), "must be finite and >= 0")
+        H = H_mm * 1e-3
+        _first_bad("thickness_mm", H_mm, H * kap >= 1.0, "is not below the object's outer radius 1/kappa_obj")
+        # eq. 3.2, in the operation order of units.object_stiffness_from_material (kPa/m, then k~)
+        factor = 1.0 / (1.0 - H * kap) ** 2 - 1.0
+        if stiffness is None:
+            mu = given
+            k = (2.0 * mu * kap * factor) * 1e-3 * scales.width_mm / scales.shear_modulus_kpa
+        else:
+            unit = (2.0 * 1.0 * kap * factor) * 1e-3 * scales.width_mm / scales.shear_modulus_kpa
+            mu = given / unit
+            k = given
+        c = kap * scales.width_mm * 1e-3
+        _first_bad("curvature_per_m", kap, c >= np.pi, "gives w kappa_obj >= pi")
+    return GraspObject(
+        shear_modulus_kpa=mu,
+        thickness_mm=H_mm,
+        curvature_per_m=kap,
+        density_kg_m3=rho,
+        failure_strain=eps,
+        stiffness=k,
+        curvature=c,
+        thickness=H_mm / scales.width_mm,
+    )
+
+
+def _pin(key: str, value: Any, shape: tuple[int, ...], batch: bool = False):
     try:
         a = np.asarray(value, dtype=float)
     except (TypeError, ValueError):
@@ -198,11 +275,14 @@ def _pin(key: str, value: Any, shape: tuple[int, ...]):
         raise ValueError(f"reset option {key!r} must be finite, got {value!r}")
     if np.any(a < 0.0):
         raise ValueError(f"reset option {key!r} must be >= 0, got {value!r}")
-    if not shape:
+    if not batch:
         if a.ndim != 0:
             raise ValueError(f"reset option {key!r} must be a single number, got {value!r}")
         return float(a)
-    return np.broadcast_to(a, shape).astype(float)
+    try:
+        return np.broadcast_to(a, shape).astype(float)
+    except ValueError:
+        raise ValueError(f"reset option {key!r} has shape {a.shape}, which does not fit the batch {shape}") from None
 
 
 class Thresholds(NamedTuple):
@@ -279,8 +359,78 @@ def update_pressure(pressure, action, params: TaskParams):
 
 
 # ---------------------------------------------------------------------------------------------
+# The solve's result, as the rules read it
+# ---------------------------------------------------------------------------------------------
+
+_STATUS_BY_CODE = np.array(["not solved (inactive)"] + [STATUS_MESSAGES[c] for c in range(max(STATUS_MESSAGES) + 1)],
+                           dtype=object)
+"""Status messages by ``code + 1``: :data:`pneunet_env.solver.STATUS_MESSAGES`, and -1 for an env not solved."""
+
+
+class SolvedState(NamedTuple):
+    """An equilibrium with the attributes of :class:`pneunet_env.solver.Equilibrium` that the task reads.
+
+    Scalars for one environment, ``(N,)`` arrays for a batch (``status`` then an object array of strings).
+    Dimensionless: pressure and traction ``/mu``, lengths ``/w``; see :func:`solved_state`.
+    """
+
+    pressure: Any
+    curvature: Any
+    side_strain: Any
+    top_strain: Any
+    contact_force: Any
+    indentation: Any
+    in_contact: Any
+    volume_change: Any
+    energy: Any
+    gradient_norm: Any
+    min_eigenvalue: Any
+    converged: Any
+    iterations: Any
+    substeps: Any
+    snapped: Any
+    status: Any
+
+
+def solved_state(
+    pressure, kappa, side_strain, volume_change, energy, gradient_norm, min_eigenvalue, iterations, substeps, snapped,
+    status_code, object_stiffness, object_curvature, chamber_height: float,
+) -> SolvedState:
+    """A solve's raw result (:func:`pneunet_env.solver.step_state`'s tuple, or a
+    :class:`pneunet_env.batched.BatchEquilibrium`'s columns) as a :class:`SolvedState`.
+
+    The contact quantities follow :class:`pneunet_env.solver.Equilibrium` exactly: top-wall strain
+    ``e_m = d (1 + e_s) kappa~``; indentation ``delta~ = (kappa~ - kappa~_obj)/(kappa~ kappa~_obj)`` where
+    ``kappa~ > kappa~_obj``, else 0; traction ``F~ = k~ delta~``; in contact where also ``k~ > 0``.
+    ``status_code`` indexes :data:`pneunet_env.solver.STATUS_MESSAGES` (``<= 1``: converged; -1 in a batch: not
+    solved).
+    """
+    if not isinstance(kappa, np.ndarray):  # one environment: plain Python arithmetic, the solver's own
+        kc = object_curvature
+        delta = (kappa - kc) / (kappa * kc) if kappa > kc else 0.0
+        return SolvedState(
+            pressure, kappa, side_strain, chamber_height * (1.0 + side_strain) * kappa, object_stiffness * delta,
+            delta, object_stiffness > 0.0 and kappa > kc, volume_change, energy, gradient_norm, min_eigenvalue,
+            status_code <= 1, iterations, substeps, snapped, STATUS_MESSAGES[status_code],
+        )
+    kc = object_curvature
+    above = kappa > kc
+    with np.errstate(divide="ignore", invalid="ignore"):
+        delta = np.where(above, (kappa - kc) / (kappa * kc), 0.0)
+    code = np.asarray(status_code)
+    return SolvedState(
+        pressure, kappa, side_strain, chamber_height * (1.0 + side_strain) * kappa, object_stiffness * delta, delta,
+        (object_stiffness > 0.0) & above, volume_change, energy, gradient_norm, min_eigenvalue,
+        (code <= 1) & (code >= 0), iterations, substeps, snapped, _STATUS_BY_CODE[code + 1],
+    )
+
+
+# ---------------------------------------------------------------------------------------------
 # Damage, slip, reward, episode end
 # ---------------------------------------------------------------------------------------------
+
+
+_float64 = np.float64
 
 
 class TaskState(NamedTuple):
@@ -360,7 +510,10 @@ def transition(
         - params.penalty_damage * damage_event
         - params.penalty_slip * drop_event
     )
-    peak = np.maximum(state.peak_force, contact_force)
+    if isinstance(contact_force, np.ndarray) or isinstance(state.peak_force, np.ndarray):
+        peak = np.maximum(state.peak_force, contact_force)
+    else:  # one environment: the same number (an np.float64, as np.maximum gives) without a ufunc call
+        peak = _float64(contact_force if contact_force > state.peak_force else state.peak_force)
     return Outcome(
         TaskState(step, damaged, dropped, peak),
         in_hold, overstressed, crushed, damage_event, slipping, drop_event, held, terminated, truncated, success,
@@ -398,6 +551,28 @@ def _ratio(a, b):
     return np.divide(a, b, out=np.zeros(a.shape), where=b > 0.0)
 
 
+def object_info(obj: GraspObject, thresholds: Thresholds, params: TaskParams) -> dict[str, Any]:
+    """The entries of :func:`build_info` that depend only on the object (constant over an episode).
+
+    An environment may compute them once per episode and pass them to :func:`build_info` as ``static``
+    (the values are the same; only the work is saved).
+    """
+    mu, w = params.shear_modulus_kpa, params.width_mm
+    return {
+        "object_stiffness": obj.stiffness,
+        "object_stiffness_kpa_per_mm": obj.stiffness * mu / w,
+        "object_shear_modulus_kpa": obj.shear_modulus_kpa,
+        "object_curvature": obj.curvature,
+        "object_curvature_per_m": obj.curvature_per_m,
+        "object_thickness_mm": obj.thickness_mm,
+        "object_density_kg_m3": obj.density_kg_m3,
+        "object_failure_strain": obj.failure_strain,
+        "failure_traction_kpa": thresholds.failure_traction * mu,
+        "crush_indentation_mm": thresholds.crush_indentation * w,
+        "grip_traction_kpa": thresholds.grip_traction * mu,
+    }
+
+
 def build_info(
     eq,
     solve,
@@ -408,21 +583,24 @@ def build_info(
     outcome: Outcome | None = None,
     action_clipped=False,
     solver_failed=False,
+    static: dict[str, Any] | None = None,
 ) -> dict[str, Any]:
     """The ``info`` dict, from arrays (or scalars): dimensionless values and physical ones.
 
     Args:
         eq: the state's equilibrium: anything with the attributes of :class:`pneunet_env.solver.Equilibrium`
             (``pressure, curvature, side_strain, top_strain, contact_force, indentation, in_contact,
-            volume_change``).
+            volume_change``), e.g. a :class:`SolvedState`.
         solve: the step's solve (its diagnostics: ``converged, iterations, substeps, snapped, gradient_norm,
             min_eigenvalue, status``); the same as ``eq`` unless the solve failed and the state was kept.
         obj, thresholds: the object and its thresholds.
         state: the task state after the step.
         outcome: the step's :class:`Outcome` (``None`` at reset).
         action_clipped, solver_failed: flags of the step.
+        static: ``object_info(obj, thresholds, params)``, if the caller keeps it (computed here otherwise).
+            Its values are shared between the calls that pass it: scalars (immutable) in the single env.
 
-    Every value is freshly computed (no buffer is reused between calls).
+    Every array value is freshly computed (no buffer is reused between calls), unless ``static`` holds arrays.
     """
     mu, w = params.shear_modulus_kpa, params.width_mm
     F = eq.contact_force
@@ -435,6 +613,8 @@ def build_info(
     else:
         delta = eq.indentation if in_contact else 0.0
         damage_ratio = max(_ratio(F, thresholds.failure_traction), _ratio(delta, thresholds.crush_indentation))
+    if static is None:
+        static = object_info(obj, thresholds, params)
     info: dict[str, Any] = {
         "pressure": eq.pressure,
         "pressure_kpa": eq.pressure * mu,
@@ -449,17 +629,7 @@ def build_info(
         "volume_change": eq.volume_change,
         "volume_change_mm3": eq.volume_change * w * w * params.depth_mm,
         "in_contact": in_contact,
-        "object_stiffness": obj.stiffness,
-        "object_stiffness_kpa_per_mm": obj.stiffness * mu / w,
-        "object_shear_modulus_kpa": obj.shear_modulus_kpa,
-        "object_curvature": obj.curvature,
-        "object_curvature_per_m": obj.curvature_per_m,
-        "object_thickness_mm": obj.thickness_mm,
-        "object_density_kg_m3": obj.density_kg_m3,
-        "object_failure_strain": obj.failure_strain,
-        "failure_traction_kpa": thresholds.failure_traction * mu,
-        "crush_indentation_mm": thresholds.crush_indentation * w,
-        "grip_traction_kpa": thresholds.grip_traction * mu,
+        **static,
         "grip_ratio": _ratio(F, thresholds.grip_traction),
         "damage_ratio": damage_ratio,
         "peak_contact_force_kpa": state.peak_force * mu,

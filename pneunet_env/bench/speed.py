@@ -1,0 +1,565 @@
+"""``pneunet-grasp bench speed``: the environment's speed against CartPole, measured in one run.
+
+What it measures (all in one process, one after the other, on whatever machine runs it):
+
+* **Single env.** The median wall time of one ``env.step`` through ``gym.make("PneuNetGrasp-v0")`` and through
+  ``gym.make("CartPole-v1")`` (default wrappers: order enforcing, passive checker, time limit), actions drawn
+  up front from the action space, each step timed alone (``time.perf_counter``), resets outside the timing;
+  the two are measured in alternating rounds so that drifts of the machine hit both. Target: ratio <= 2.
+* **Vector env.** Env-steps per second (``N`` times steps over the wall time of the step loop, auto-resets
+  included) of ``gym.make_vec("PneuNetGrasp-v0", num_envs=N)`` (:class:`~pneunet_env.vector_env.PneuNetGraspVectorEnv`)
+  and of ``gym.make_vec("CartPole-v1", num_envs=N)`` (Gymnasium's ``CartPoleVectorEnv``) at N = 1, 64,
+  1,024 and 16,384, actions drawn up front; the best of a few repeats. Target: >= 1,000,000 at N = 16,384.
+* **Solves.** ``solve_equilibrium`` calls per second (the public API, warm-started along random pressure
+  walks, as an env calls it), and for reference the compiled ``step_state`` from Python and ``solve_batch``
+  per env at N = 16,384.
+* **Memory at N = 16,384.** The state kept between steps (``PneuNetGraspVectorEnv.state_nbytes()``: the
+  arrays of equilibria, objects, thresholds, task state, observation and random streams) per env (target:
+  <= 1 KiB), and the peak of Python/numpy allocations (``tracemalloc``) while making the env, resetting it
+  and stepping it 10 times, per env (this includes the info dicts and the solver's temporaries).
+* **Accuracy.** Over every solve of the run (single and vector env steps): the worst gradient norm and the
+  fraction of converged solves (target: all, ``|grad| <= 1e-10``), so that speed is never bought with
+  wrong answers.
+
+Outputs in ``--out`` (default ``bench_out/speed``): ``speed.json`` (every figure, the machine, versions),
+``speed.png`` (the chart). ``--quick`` (CI: well under a minute) takes fewer steps and repeats; its figures
+are noisier. No thresholds are asserted: the targets are printed next to the figures.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import platform
+import sys
+import time
+import tracemalloc
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+__all__ = ["add_arguments", "run", "run_benchmark", "format_table", "plot", "NUM_ENVS", "TARGETS"]
+
+NUM_ENVS = (1, 64, 1024, 16384)
+"""The vector env sizes measured."""
+
+TARGETS = {
+    "single_step_ratio_max": 2.0,
+    "vector_steps_per_s_at_16384_min": 1_000_000.0,
+    "state_bytes_per_env_max": 1024.0,
+    "gradient_norm_max": 1e-10,
+}
+"""Issue 4's targets (printed next to the figures; not asserted)."""
+
+
+def _progress(total: int, enabled: bool):
+    try:
+        from tqdm.auto import tqdm
+    except ImportError:  # pragma: no cover - tqdm comes with the plot/rl extras
+        class _Null:
+            def update(self, n=1):
+                pass
+
+            def set_description_str(self, s):
+                pass
+
+            def close(self):
+                pass
+
+        return _Null()
+    return tqdm(total=total, disable=not enabled, leave=False, file=sys.stderr, unit="part")
+
+
+class _Accuracy:
+    """Accumulates the solves' convergence and gradient norms."""
+
+    def __init__(self) -> None:
+        self.solves = 0
+        self.converged = 0
+        self.worst_gradient = 0.0
+        self.nan = 0
+
+    def add(self, gradient_norm, converged) -> None:
+        g = np.asarray(gradient_norm, dtype=float).ravel()
+        c = np.asarray(converged, dtype=bool).ravel()
+        self.solves += g.size
+        self.converged += int(c.sum())
+        self.nan += int(np.isnan(g).sum())
+        if g.size:
+            self.worst_gradient = max(self.worst_gradient, float(np.nanmax(g, initial=0.0)))
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "solves": self.solves,
+            "converged_fraction": self.converged / self.solves if self.solves else math.nan,
+            "worst_gradient_norm": self.worst_gradient,
+            "nan_gradient_norms": self.nan,
+        }
+
+
+# --------------------------------------------------------------------------------------------------------
+# Single env
+# --------------------------------------------------------------------------------------------------------
+
+
+def _time_steps(env, actions, acc: _Accuracy | None) -> np.ndarray:
+    """Time each ``env.step`` alone; reset (untimed) when an episode ends."""
+    times = np.empty(len(actions))
+    clock = time.perf_counter
+    step = env.step
+    for i, a in enumerate(actions):
+        t0 = clock()
+        out = step(a)
+        times[i] = clock() - t0
+        if acc is not None:
+            info = out[4]
+            acc.add(info["gradient_norm"], info["solver_converged"])
+        if out[2] or out[3]:
+            env.reset()
+    return times
+
+
+def bench_single(steps: int, rounds: int, seed: int = 0, acc: _Accuracy | None = None) -> dict[str, Any]:
+    """Median ``env.step`` time of ``gym.make("PneuNetGrasp-v0")`` and ``gym.make("CartPole-v1")``."""
+    import gymnasium as gym
+
+    import pneunet_env  # noqa: F401  (registers the environment)
+
+    acc = _Accuracy() if acc is None else acc
+    envs = {"PneuNetGrasp-v0": gym.make("PneuNetGrasp-v0"), "CartPole-v1": gym.make("CartPole-v1")}
+    times: dict[str, list[np.ndarray]] = {k: [] for k in envs}
+    for env in envs.values():  # warm up (the first numba call compiles; caches)
+        env.reset(seed=seed)
+        env.action_space.seed(seed)
+        _time_steps(env, [env.action_space.sample() for _ in range(200)], None)
+    per_round = max(1, steps // rounds)
+    for r in range(rounds):
+        for name, env in envs.items():
+            env.reset(seed=seed + r)
+            actions = [env.action_space.sample() for _ in range(per_round)]  # drawn up front
+            # accuracy is read from the info after each timed step (outside the timed call)
+            times[name].append(_time_steps(env, actions, acc if name == "PneuNetGrasp-v0" else None))
+    for env in envs.values():
+        env.close()
+    med = {k: float(np.median(np.concatenate(v))) for k, v in times.items()}
+    return {
+        "steps_per_env": per_round * rounds,
+        "rounds": rounds,
+        "median_step_s": med,
+        "mean_step_s": {k: float(np.mean(np.concatenate(v))) for k, v in times.items()},
+        "ratio": med["PneuNetGrasp-v0"] / med["CartPole-v1"],
+    }
+
+
+# --------------------------------------------------------------------------------------------------------
+# Vector env
+# --------------------------------------------------------------------------------------------------------
+
+
+def _vector_run(env, actions, collect: list | None) -> float:
+    """Wall time of ``len(actions)`` steps (auto-resets included)."""
+    step = env.step
+    t0 = time.perf_counter()
+    if collect is None:
+        for a in actions:
+            step(a)
+    else:
+        append = collect.append
+        for a in actions:
+            _, _, term, trunc, info = step(a)
+            append((info["gradient_norm"], info["solver_converged"], info.get("final_info")))
+    return time.perf_counter() - t0
+
+
+def bench_vector(num_envs: tuple[int, ...], env_steps: int, min_steps: int, repeats: int, seed: int = 0,
+                 backend: str = "auto", acc: _Accuracy | None = None, progress=None) -> list[dict[str, Any]]:
+    """Env-steps per second of the batched env and of CartPole's vector env at each N."""
+    import gymnasium as gym
+
+    import pneunet_env  # noqa: F401
+
+    rows = []
+    for n in num_envs:
+        steps = int(max(min_steps, min(4000, env_steps // n)))
+        rng = np.random.default_rng(seed + n)
+        pn = gym.make_vec("PneuNetGrasp-v0", num_envs=n, backend=backend)
+        cp = gym.make_vec("CartPole-v1", num_envs=n)
+        pn_actions = rng.uniform(-1.0, 1.0, (steps, n, 1)).astype(np.float32)
+        cp_actions = rng.integers(0, 2, (steps, n))
+        rates: dict[str, list[float]] = {"PneuNetGrasp-v0": [], "CartPole-v1": []}
+        for r in range(repeats):
+            for name, env, acts in (("PneuNetGrasp-v0", pn, pn_actions), ("CartPole-v1", cp, cp_actions)):
+                env.reset(seed=seed + r)
+                env.step(acts[0])  # warm-up step (numba's parallel loop starts its threads)
+                collect = [] if (name == "PneuNetGrasp-v0" and r == 0 and acc is not None) else None
+                dt = _vector_run(env, acts, collect)
+                rates[name].append(n * steps / dt)
+                if collect:
+                    for gn, conv, final in collect:
+                        if final is None:
+                            acc.add(gn, conv)
+                        else:  # the ended episodes' step: its solve's diagnostics are in final_info
+                            done = final["_gradient_norm"]
+                            acc.add(np.where(done, final["gradient_norm"], gn),
+                                    np.where(done, final["solver_converged"], conv))
+        state_bytes = pn.unwrapped.state_nbytes()
+        pn.close()
+        cp.close()
+        best = {k: max(v) for k, v in rates.items()}
+        rows.append({
+            "num_envs": n,
+            "steps": steps,
+            "repeats": repeats,
+            "steps_per_s": best,
+            "ratio": best["PneuNetGrasp-v0"] / best["CartPole-v1"],
+            "time_per_step_s": {k: n / v for k, v in best.items()},
+            "state_bytes_per_env": state_bytes / n,
+        })
+        if progress is not None:
+            progress.update(1)
+    return rows
+
+
+# --------------------------------------------------------------------------------------------------------
+# Solves, memory
+# --------------------------------------------------------------------------------------------------------
+
+
+def _solve_workload(n: int, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Random walks of pressure (steps of at most 3 kPa = 0.06 p~, the env's) for random objects."""
+    rng = np.random.default_rng(seed)
+    kobj = np.where(rng.random(n) < 0.15, 0.0, 10.0 ** rng.uniform(-5.0, -1.0, n))
+    p = np.clip(np.cumsum(rng.uniform(-0.06, 0.06, n)), 0.0, 1.2)
+    return kobj, p, rng.uniform(0.0, 1.2, 16)
+
+
+def bench_solves(calls: int, batch_n: int, seed: int = 0, backend: str = "auto",
+                 acc: _Accuracy | None = None) -> dict[str, Any]:
+    """``solve_equilibrium`` calls/s (warm-started walks), ``step_state`` from Python, ``solve_batch`` per env."""
+    from ..batched import solve_batch
+    from ..solver import DEFAULT_OPTIONS, params_tuple, solve_equilibrium, step_state
+
+    walks = 20
+    per_walk = max(1, calls // walks)
+    rng = np.random.default_rng(seed)
+    kobjs = np.where(rng.random(walks) < 0.15, 0.0, 10.0 ** rng.uniform(-5.0, -1.0, walks))
+    paths = np.clip(np.cumsum(rng.uniform(-0.06, 0.06, (walks, per_walk)), axis=1) + 0.3, 0.0, 1.2)
+    solve_equilibrium(0.1, 1e-4, 0.02)  # compile / warm up
+    t_api = 0.0
+    gns, conv = [], []
+    for w in range(walks):
+        k = float(kobjs[w])
+        eq = solve_equilibrium(0.0, k, 0.02)
+        ps = paths[w].tolist()
+        t0 = time.perf_counter()
+        for p in ps:
+            eq = solve_equilibrium(p, k, 0.02, initial=eq)
+        t_api += time.perf_counter() - t0
+        gns.append(eq.gradient_norm)
+        conv.append(eq.converged)
+    # the compiled kernel alone, called from Python on the same walks
+    prm = params_tuple(None)
+    opts = DEFAULT_OPTIONS.as_tuple()
+    t_kernel = 0.0
+    for w in range(walks):
+        k = float(kobjs[w])
+        s_k, s_s, p0 = 0.0, 0.0, 0.0
+        ps = paths[w].tolist()
+        t0 = time.perf_counter()
+        for p in ps:
+            r = step_state(s_k, s_s, p0, p, prm, k, 0.02, opts)
+            s_k, s_s, p0 = r[0], r[1], p
+        t_kernel += time.perf_counter() - t0
+        gns.append(r[3])
+        conv.append(r[8] <= 1)
+    # the batched solver: N envs, each one env-like step from an equilibrium
+    brng = np.random.default_rng(seed + 1)
+    kb = np.where(brng.random(batch_n) < 0.15, 0.0, 10.0 ** brng.uniform(-5.0, -1.0, batch_n))
+    ko = np.full(batch_n, 0.02)
+    p0 = brng.uniform(0.0, 1.2, batch_n)
+    z = np.zeros(batch_n)
+    start = solve_batch(z, z, z, p0, kb, ko, backend=backend)
+    p1 = np.clip(p0 + brng.uniform(-0.06, 0.06, batch_n), 0.0, 1.2)
+    times = []
+    for _ in range(3):
+        t0 = time.perf_counter()
+        res = solve_batch(start.kappa, start.side_strain, p0, p1, kb, ko, backend=backend, validate=False)
+        times.append(time.perf_counter() - t0)
+    if acc is not None:
+        acc.add(np.array(gns), np.array(conv))
+        acc.add(res.gradient_norm, res.converged)
+    n_calls = walks * per_walk
+    return {
+        "solve_equilibrium_calls_per_s": n_calls / t_api,
+        "step_state_calls_per_s": n_calls / t_kernel,
+        "solve_batch_num_envs": batch_n,
+        "solve_batch_solves_per_s": batch_n / min(times),
+        "calls": n_calls,
+    }
+
+
+def bench_memory(num_envs: int, steps: int, seed: int = 0, backend: str = "auto") -> dict[str, Any]:
+    """State bytes per env, and the tracemalloc peak per env over make + reset + ``steps`` steps."""
+    import gymnasium as gym
+
+    import pneunet_env  # noqa: F401
+
+    rng = np.random.default_rng(seed)
+    actions = rng.uniform(-1.0, 1.0, (steps, num_envs, 1)).astype(np.float32)
+    tracemalloc.start()
+    try:
+        base, _ = tracemalloc.get_traced_memory()
+        env = gym.make_vec("PneuNetGrasp-v0", num_envs=num_envs, backend=backend)
+        env.reset(seed=seed)
+        for a in actions:
+            env.step(a)
+        _, peak = tracemalloc.get_traced_memory()
+    finally:
+        tracemalloc.stop()
+    state = env.unwrapped.state_nbytes()
+    env.close()
+    return {
+        "num_envs": num_envs,
+        "state_bytes_per_env": state / num_envs,
+        "peak_bytes_per_env": (peak - base) / num_envs,
+        "peak_method": f"tracemalloc peak over gym.make_vec + reset + {steps} steps, minus the baseline",
+        "state_method": "PneuNetGraspVectorEnv.state_nbytes(): arrays kept between steps",
+    }
+
+
+# --------------------------------------------------------------------------------------------------------
+# The whole benchmark
+# --------------------------------------------------------------------------------------------------------
+
+
+def _load() -> list[float] | None:
+    """The 1/5/15-minute load averages (other work on the machine makes every figure slower), if available."""
+    try:
+        return [round(x, 2) for x in os.getloadavg()]
+    except (AttributeError, OSError):  # pragma: no cover - not on Windows
+        return None
+
+
+def _machine() -> dict[str, Any]:
+    import gymnasium
+
+    from .._jit import HAVE_NUMBA
+
+    info = {
+        "python": platform.python_version(),
+        "numpy": np.__version__,
+        "gymnasium": gymnasium.__version__,
+        "numba": None,
+        "platform": platform.platform(),
+        "processor": platform.processor() or platform.machine(),
+        "cpus": os.cpu_count(),
+    }
+    if HAVE_NUMBA:
+        import numba
+
+        info["numba"] = numba.__version__
+        info["numba_threads"] = numba.get_num_threads()
+    return info
+
+
+def run_benchmark(quick: bool = False, progress: bool = True, backend: str = "auto", seed: int = 0,
+                  num_envs: tuple[int, ...] = NUM_ENVS) -> dict[str, Any]:
+    """Run every part; return the results (what ``speed.json`` holds)."""
+    from .._jit import HAVE_NUMBA
+
+    t_start = time.perf_counter()
+    load_start = _load()
+    acc = _Accuracy()
+    bar = _progress(3 + len(num_envs), progress)
+    bar.set_description_str("single env vs CartPole")
+    single = bench_single(steps=4000 if quick else 40000, rounds=4 if quick else 10, seed=seed, acc=acc)
+    bar.update(1)
+    bar.set_description_str("vector env vs CartPoleVectorEnv")
+    vector = bench_vector(num_envs, env_steps=150_000 if quick else 3_000_000, min_steps=5 if quick else 50,
+                          repeats=1 if quick else 3, seed=seed, backend=backend, acc=acc, progress=bar)
+    bar.set_description_str("solves")
+    solves = bench_solves(calls=2000 if quick else 40000, batch_n=max(num_envs), seed=seed, backend=backend, acc=acc)
+    bar.update(1)
+    bar.set_description_str("memory")
+    memory = bench_memory(max(num_envs), steps=3 if quick else 10, seed=seed, backend=backend)
+    bar.update(1)
+    bar.close()
+    return {
+        "quick": quick,
+        "backend": backend if backend != "auto" else ("numba" if HAVE_NUMBA else "numpy"),
+        "machine": _machine(),
+        "single_env": single,
+        "vector_env": vector,
+        "solves": solves,
+        "memory": memory,
+        "accuracy": acc.as_dict(),
+        "targets": TARGETS,
+        "load_average": {"start": load_start, "end": _load()},
+        "wall_s": time.perf_counter() - t_start,
+    }
+
+
+def _short(x: float) -> str:
+    """3.2M, 145k, 7.4k."""
+    for div, unit in ((1e6, "M"), (1e3, "k")):
+        if x >= div:
+            return f"{x / div:.3g}{unit}"
+    return f"{x:.3g}"
+
+
+def _fmt_rate(x: float) -> str:
+    return f"{x:,.0f}"
+
+
+def format_table(res: dict[str, Any]) -> str:
+    """The printed table."""
+    s = res["single_env"]
+    m = res["machine"]
+    lines = [
+        f"PneuNetGrasp-v0 speed ({'quick' if res['quick'] else 'full'} run; backend {res['backend']}; "
+        f"{m['cpus']} CPUs; numpy {m['numpy']}, gymnasium {m['gymnasium']}, numba {m['numba']})",
+        "",
+        "single env: median env.step (gym.make, default wrappers)",
+        f"  {'PneuNetGrasp-v0':<22}{s['median_step_s']['PneuNetGrasp-v0'] * 1e6:>10.2f} us",
+        f"  {'CartPole-v1':<22}{s['median_step_s']['CartPole-v1'] * 1e6:>10.2f} us",
+        f"  {'ratio':<22}{s['ratio']:>10.2f} x    (target <= {TARGETS['single_step_ratio_max']:g})",
+        "",
+        "vector env: env-steps/s (gym.make_vec)",
+        f"  {'N':>6}  {'PneuNetGrasp-v0':>16}  {'CartPoleVectorEnv':>18}  {'ratio':>7}  {'us/env-step':>11}",
+    ]
+    for row in res["vector_env"]:
+        r = row["steps_per_s"]
+        lines.append(
+            f"  {row['num_envs']:>6}  {_fmt_rate(r['PneuNetGrasp-v0']):>16}  {_fmt_rate(r['CartPole-v1']):>18}  "
+            f"{row['ratio']:>7.3f}  {1e6 / r['PneuNetGrasp-v0']:>11.3f}"
+        )
+    lines.append(f"  (target: >= {_fmt_rate(TARGETS['vector_steps_per_s_at_16384_min'])} env-steps/s at N = 16,384)")
+    sv = res["solves"]
+    lines += [
+        "",
+        "solves",
+        f"  solve_equilibrium (public API)   {_fmt_rate(sv['solve_equilibrium_calls_per_s']):>12} calls/s "
+        f"({1e6 / sv['solve_equilibrium_calls_per_s']:.2f} us/call)",
+        f"  step_state (the kernel, from Python){_fmt_rate(sv['step_state_calls_per_s']):>9} calls/s "
+        f"({1e6 / sv['step_state_calls_per_s']:.2f} us/call)",
+        f"  solve_batch N={sv['solve_batch_num_envs']:<6}            {_fmt_rate(sv['solve_batch_solves_per_s']):>12} "
+        f"solves/s ({1e6 / sv['solve_batch_solves_per_s']:.3f} us/env)",
+    ]
+    mem = res["memory"]
+    lines += [
+        "",
+        f"memory at N = {mem['num_envs']:,}",
+        f"  state kept between steps   {mem['state_bytes_per_env']:>8.0f} B/env   "
+        f"(target <= {TARGETS['state_bytes_per_env_max']:.0f} B)",
+        f"  peak allocations (tracemalloc, make + reset + steps) {mem['peak_bytes_per_env'] / 1024:>6.2f} KiB/env",
+    ]
+    a = res["accuracy"]
+    load = res.get("load_average") or {}
+    if load.get("start") is not None:
+        lines += ["", f"load average (1 min) at start {load['start'][0]:.2f}, at end {load['end'][0]:.2f} "
+                      f"(other processes on the {m['cpus']} CPUs slow every figure down)"]
+    lines += [
+        "",
+        f"accuracy over {a['solves']:,} solves: converged {100 * a['converged_fraction']:.4f} %, worst |grad U| "
+        f"{a['worst_gradient_norm']:.2e} (target: all, <= {TARGETS['gradient_norm_max']:g}), "
+        f"NaN {a['nan_gradient_norms']}",
+    ]
+    return "\n".join(lines)
+
+
+def plot(res: dict[str, Any], path: Path) -> None:
+    """The chart: single-env step times, and vector env-steps/s against N (log-log), both against CartPole."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    pn_c, cp_c = "#c0392b", "#2c6fbb"
+    fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 4.4), gridspec_kw={"width_ratios": [1, 1.6]})
+    s = res["single_env"]["median_step_s"]
+    names = ["PneuNetGrasp-v0", "CartPole-v1"]
+    vals = [s[n] * 1e6 for n in names]
+    bars = ax1.bar(names, vals, color=[pn_c, cp_c], width=0.6)
+    for b, v in zip(bars, vals, strict=True):
+        ax1.text(b.get_x() + b.get_width() / 2, v, f"{v:.2f} µs", ha="center", va="bottom", fontsize=10)
+    limit = TARGETS["single_step_ratio_max"] * s["CartPole-v1"] * 1e6
+    ax1.axhline(limit, color="0.3", ls="--", lw=1)
+    ax1.text(1.32, limit, "target:\n2× CartPole", va="center", fontsize=8, color="0.3")
+    ax1.set_ylim(0, max(max(vals), limit) * 1.25)
+    ax1.set_ylabel("median env.step time (µs)")
+    ax1.set_title(f"single env (gym.make): ratio {res['single_env']['ratio']:.2f}×", fontsize=11)
+    ax1.set_xlim(-0.6, 1.9)
+
+    rows = res["vector_env"]
+    n = np.array([r["num_envs"] for r in rows])
+    pn = np.array([r["steps_per_s"]["PneuNetGrasp-v0"] for r in rows])
+    cp = np.array([r["steps_per_s"]["CartPole-v1"] for r in rows])
+    ax2.loglog(n, pn, "o-", color=pn_c, label="PneuNetGraspVectorEnv")
+    ax2.loglog(n, cp, "s-", color=cp_c, label="CartPoleVectorEnv")
+    for x, y, c, r in zip(n, pn, cp, rows, strict=True):
+        above = c / y > 8.0  # room between the two curves on the log scale; else below the point
+        ax2.annotate(f"{_short(y)}/s\n{r['ratio']:.2f}× CP", (x, y), textcoords="offset points",
+                     xytext=(0, 9 if above else -9), ha="center", va="bottom" if above else "top", fontsize=8,
+                     color=pn_c)
+    target = TARGETS["vector_steps_per_s_at_16384_min"]
+    ax2.plot([n[-1]], [target], marker="_", markersize=22, mew=2, color="0.25", ls="none")
+    ax2.annotate("target\n10⁶/s", (n[-1], target), textcoords="offset points", xytext=(14, 0), ha="left",
+                 va="center", fontsize=8, color="0.25")
+    ax2.set_xlabel("number of envs N")
+    ax2.set_ylabel("env-steps per second")
+    ax2.set_xticks(n)
+    ax2.set_xticklabels([f"{v:,}" for v in n])
+    ax2.set_xlim(n[0] / 2.5, n[-1] * 8)
+    ax2.set_ylim(min(pn.min(), cp.min()) / 8, max(pn.max(), cp.max()) * 4)
+    ax2.set_title("vector env (gym.make_vec)", fontsize=11)
+    ax2.legend(loc="upper left", fontsize=9, title="CP: CartPole", title_fontsize=8)
+    ax2.grid(True, which="major", alpha=0.3)
+    a = res["accuracy"]
+    m = res["machine"]
+    fig.suptitle(
+        f"PneuNetGrasp-v0 speed, {m['cpus']} CPUs, backend {res['backend']}: every one of {a['solves']:,} solves "
+        f"{'converged' if a['converged_fraction'] == 1 else 'NOT all converged'}, worst |∇U| = "
+        f"{a['worst_gradient_norm']:.1e}", fontsize=10,
+    )
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--quick", action="store_true", help="fewer steps and repeats (CI: well under a minute)")
+    parser.add_argument("--out", type=Path, default=Path("bench_out/speed"),
+                        help="output folder (speed.json, speed.png)")
+    parser.add_argument("--backend", choices=("auto", "numba", "numpy"), default="auto",
+                        help="the vector env's batched solver (default: numba if installed)")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    parser.add_argument("--plot-only", action="store_true",
+                        help="measure nothing: redraw speed.png and reprint the table from OUT/speed.json")
+
+
+def run(args: argparse.Namespace) -> int:
+    from .._jit import HAVE_NUMBA
+
+    if args.backend == "numba" and not HAVE_NUMBA:
+        raise SystemExit("--backend numba needs numba (pip install pneunet-env[fast])")
+    out: Path = args.out
+    if args.plot_only:
+        path = out / "speed.json"
+        if not path.is_file():
+            raise SystemExit(f"--plot-only needs {path} (from an earlier run with --out {out})")
+        res = json.loads(path.read_text())
+        plot(res, out / "speed.png")
+        print(format_table(res))
+        print(f"\nredrew {out}/speed.png from {path}")
+        return 0
+    out.mkdir(parents=True, exist_ok=True)
+    res = run_benchmark(quick=args.quick, progress=not args.no_progress, backend=args.backend)
+    (out / "speed.json").write_text(json.dumps(res, indent=1) + "\n")
+    plot(res, out / "speed.png")
+    print(format_table(res))
+    print(f"\nwrote {out}/speed.json, speed.png ({res['wall_s']:.1f} s)")
+    return 0

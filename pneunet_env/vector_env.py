@@ -1,0 +1,603 @@
+"""``PneuNetGrasp-v0`` natively batched: N grasps advanced together by one batched solve (no loop over envs).
+
+:class:`PneuNetGraspVectorEnv` is what ``gym.make_vec("PneuNetGrasp-v0", num_envs=N)`` returns. It runs the
+same rules as the single environment (:class:`pneunet_env.env.PneuNetGraspEnv`), through the same pure
+functions of :mod:`pneunet_env.task` called on ``(N,)`` arrays instead of scalars (gymnax style: the single
+env is the N = 1 case), with :func:`pneunet_env.batched.solve_batch` in place of the scalar solve. Envs
+whose solve has converged leave the batched Newton iteration (the mask is inside ``solve_batch``).
+
+It is, step for step, ``gym.make_vec("PneuNetGrasp-v0", num_envs=N, vectorization_mode="sync",
+vector_kwargs={"autoreset_mode": AutoresetMode.SAME_STEP})`` (N single envs) computed as arrays: the same
+observations, rewards, ends, info (Gymnasium's vector convention, a dict of ``(N,)`` arrays with ``_key``
+masks) and random objects, to round-off (tested to 1e-10, with episodes that end and auto-reset).
+"""
+
+from __future__ import annotations
+
+import operator
+from collections.abc import Sequence
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+from gymnasium.vector import AutoresetMode, VectorEnv
+from gymnasium.vector.utils import batch_space
+
+from . import task
+from .batched import BACKENDS, solve_batch
+from .config import RANGE_FIELDS, EnvConfig, load_config
+from .env import free_volume_change
+from .objects import GraspObject
+from .params import ActuatorParams
+from .solver import Equilibrium
+
+__all__ = ["PneuNetGraspVectorEnv", "PCG64Streams"]
+
+
+# ------------------------------------------------------------------------------------------------------
+# One random stream per sub-env, advanced as arrays: numpy's PCG64 seeded through SeedSequence
+# ------------------------------------------------------------------------------------------------------
+
+_M32 = np.uint64(0xFFFFFFFF)
+_S32 = np.uint64(32)
+_MASK32 = 0xFFFFFFFF
+# numpy's SeedSequence (bit_generator.pyx): hash constants and a pool of 4 uint32 words.
+_INIT_A, _MULT_A, _INIT_B, _MULT_B = 0x43B0D7E5, 0x931E8875, 0x8B51F9DD, 0x58F38DED
+_MIX_MULT_L, _MIX_MULT_R = 0xCA01F9DD, 0x4973F715
+_POOL = 4
+# PCG64 (pcg64.h): the 128-bit LCG multiplier, as two 64-bit halves.
+_MULT_HI = np.uint64(2549297995355413924)
+_MULT_LO = np.uint64(4865540595714422341)
+_SEED_LIMIT = 1 << (32 * _POOL)
+
+
+def _hashmix(value: np.ndarray, hc: int) -> tuple[np.ndarray, int]:
+    value = value ^ np.uint32(hc)
+    hc = (hc * _MULT_A) & _MASK32
+    value = value * np.uint32(hc)
+    return value ^ (value >> np.uint32(16)), hc
+
+
+def _mix(x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    r = np.uint32(_MIX_MULT_L) * x - np.uint32(_MIX_MULT_R) * y
+    return r ^ (r >> np.uint32(16))
+
+
+def _seed_sequence_words(words: np.ndarray) -> list[np.ndarray]:
+    """``SeedSequence(seed).generate_state(8, uint32)`` for every column of ``words`` ((4, n) uint32: the seed's
+    32-bit words, least significant first, zero-padded; numpy pads a short entropy the same way)."""
+    hc = _INIT_A
+    pool = []
+    for i in range(_POOL):
+        v, hc = _hashmix(words[i], hc)
+        pool.append(v)
+    for i_src in range(_POOL):
+        for i_dst in range(_POOL):
+            if i_src != i_dst:
+                h, hc = _hashmix(pool[i_src], hc)
+                pool[i_dst] = _mix(pool[i_dst], h)
+    hc = _INIT_B
+    out = []
+    for i in range(2 * _POOL):
+        v = pool[i % _POOL] ^ np.uint32(hc)
+        hc = (hc * _MULT_B) & _MASK32
+        v = v * np.uint32(hc)
+        out.append(v ^ (v >> np.uint32(16)))
+    return out
+
+
+def _mulhi64(x: np.ndarray, y: np.uint64) -> np.ndarray:
+    """The high 64 bits of the 128-bit product ``x * y`` (32-bit limbs)."""
+    x0, x1 = x & _M32, x >> _S32
+    y0, y1 = y & _M32, y >> _S32
+    p00, p01, p10, p11 = x0 * y0, x0 * y1, x1 * y0, x1 * y1
+    mid = (p00 >> _S32) + (p01 & _M32) + (p10 & _M32)
+    return p11 + (p01 >> _S32) + (p10 >> _S32) + (mid >> _S32)
+
+
+def _lcg_step(hi, lo, ihi, ilo):
+    """``state * MULT + inc`` modulo 2**128, states as (high, low) uint64 halves."""
+    nlo = lo * _MULT_LO
+    nhi = _mulhi64(lo, _MULT_LO) + lo * _MULT_HI + hi * _MULT_LO
+    lo2 = nlo + ilo
+    return nhi + ihi + (lo2 < nlo).astype(np.uint64), lo2
+
+
+class PCG64Streams:
+    """N independent random streams, each numpy's ``Generator(PCG64(SeedSequence(seed_i)))``, drawn as arrays.
+
+    Stream ``i`` seeded with ``seed_i`` yields exactly (bit for bit) the doubles of
+    ``np.random.Generator(np.random.PCG64(np.random.SeedSequence(seed_i))).random()``, which is what
+    ``env.reset(seed=seed_i)`` gives a single Gymnasium env as ``env.np_random``. Seeding and drawing are
+    array operations over the streams (numpy's SeedSequence hash and the 128-bit PCG64 LCG with its XSL-RR
+    output, emulated with uint32/uint64 arithmetic), so there is no Python loop over envs.
+    Each stream's state is 32 bytes.
+    """
+
+    def __init__(self, n: int) -> None:
+        self.hi = np.zeros(n, np.uint64)
+        self.lo = np.zeros(n, np.uint64)
+        self.inc_hi = np.zeros(n, np.uint64)
+        self.inc_lo = np.ones(n, np.uint64)
+
+    @property
+    def nbytes(self) -> int:
+        return self.hi.nbytes + self.lo.nbytes + self.inc_hi.nbytes + self.inc_lo.nbytes
+
+    def seed(self, idx: np.ndarray, words: np.ndarray) -> None:
+        """Seed streams ``idx`` from their seeds' 32-bit words ``words`` ((4, len(idx)) uint32, least significant
+        first): what ``PCG64(SeedSequence(seed))`` does."""
+        with np.errstate(over="ignore"):
+            st = _seed_sequence_words(words)
+            v = [st[2 * k].astype(np.uint64) | (st[2 * k + 1].astype(np.uint64) << _S32) for k in range(4)]
+            s_hi, s_lo, q_hi, q_lo = v
+            # pcg_setseq_128_srandom_r: inc = (initseq << 1) | 1; state = 0; step; state += initstate; step.
+            ihi = (q_hi << np.uint64(1)) | (q_lo >> np.uint64(63))
+            ilo = (q_lo << np.uint64(1)) | np.uint64(1)
+            hi, lo = _lcg_step(np.zeros_like(s_hi), np.zeros_like(s_lo), ihi, ilo)
+            lo2 = lo + s_lo
+            hi = hi + s_hi + (lo2 < lo).astype(np.uint64)
+            hi, lo = _lcg_step(hi, lo2, ihi, ilo)
+        self.hi[idx], self.lo[idx], self.inc_hi[idx], self.inc_lo[idx] = hi, lo, ihi, ilo
+
+    def random(self, idx: np.ndarray, count: int) -> np.ndarray:
+        """``count`` doubles in ``[0, 1)`` from each stream ``idx``: shape ``(count, len(idx))``; advances them."""
+        hi, lo, ihi, ilo = self.hi[idx], self.lo[idx], self.inc_hi[idx], self.inc_lo[idx]
+        out = np.empty((count, len(idx)))
+        with np.errstate(over="ignore"):
+            for j in range(count):
+                hi, lo = _lcg_step(hi, lo, ihi, ilo)
+                x = hi ^ lo
+                rot = hi >> np.uint64(58)
+                u = (x >> rot) | (x << ((np.uint64(64) - rot) & np.uint64(63)))  # XSL-RR output
+                out[j] = (u >> np.uint64(11)).astype(np.float64) * (1.0 / 9007199254740992.0)
+        self.hi[idx], self.lo[idx] = hi, lo
+        return out
+
+    def generator(self, i: int) -> np.random.Generator:
+        """A ``np.random.Generator`` in the state of stream ``i`` (a copy: drawing from it does not advance ``i``)."""
+        bg = np.random.PCG64()
+        bg.state = {
+            "bit_generator": "PCG64",
+            "state": {"state": (int(self.hi[i]) << 64) | int(self.lo[i]),
+                      "inc": (int(self.inc_hi[i]) << 64) | int(self.inc_lo[i])},
+            "has_uint32": 0,
+            "uinteger": 0,
+        }
+        return np.random.Generator(bg)
+
+
+def _seed_words(seeds: Sequence[int] | int, n: int) -> np.ndarray:
+    """The (4, n) uint32 words of the seeds ``seed + i`` (an int) or of a list of n ints; ``ValueError`` if invalid."""
+    words = np.zeros((_POOL, n), np.uint32)
+    if isinstance(seeds, (int, np.integer)) and not isinstance(seeds, (bool, np.bool_)):
+        s = int(seeds)
+        if s < 0 or s + n > _SEED_LIMIT:
+            raise ValueError(f"seed must be an integer in [0, 2**128 - num_envs], got {seeds!r}")
+        carry = np.arange(n, dtype=np.uint64)
+        for j in range(_POOL):
+            v = np.uint64((s >> (32 * j)) & _MASK32) + carry
+            words[j] = (v & _M32).astype(np.uint32)
+            carry = v >> _S32
+        return words
+    values = []
+    for i, s in enumerate(seeds):  # a user's list of n seeds is converted once, at reset(seed=[...])
+        try:
+            v = operator.index(s)
+        except TypeError:
+            raise ValueError(f"seed[{i}] must be an integer, got {s!r}") from None
+        if isinstance(s, (bool, np.bool_)) or v < 0 or v >= _SEED_LIMIT:
+            raise ValueError(f"seed[{i}] must be an integer in [0, 2**128), got {s!r}")
+        values.append(v)
+    for j in range(_POOL):
+        words[j] = np.array([(v >> (32 * j)) & _MASK32 for v in values], dtype=np.uint32)
+    return words
+
+
+# ------------------------------------------------------------------------------------------------------
+# The vector env
+# ------------------------------------------------------------------------------------------------------
+
+
+def _take(nt, idx):
+    """A NamedTuple/dataclass of arrays, restricted to ``idx``."""
+    return type(nt)(*(np.asarray(v)[idx] if np.ndim(v) else v for v in _fields(nt)))
+
+
+def _fields(record) -> tuple:
+    if isinstance(record, tuple):
+        return tuple(record)
+    return tuple(getattr(record, f) for f in record.__dataclass_fields__)
+
+
+def _merge(old, idx, new):
+    """A fresh record: ``old`` with entries ``idx`` replaced by ``new`` (arrays are never changed in place)."""
+    out = []
+    for a, b in zip(_fields(old), _fields(new), strict=True):
+        c = np.array(a, copy=True)
+        c[idx] = b
+        out.append(c)
+    return type(old)(*out)
+
+
+def _zero_like(a: np.ndarray):
+    return None if a.dtype == object else a.dtype.type(0)
+
+
+class PneuNetGraspVectorEnv(VectorEnv):
+    """N pneu-net grasps (``PneuNetGrasp-v0``) stepped together, with one batched quasi-static solve per step.
+
+    ## Description
+
+    Each sub-environment is a :class:`pneunet_env.env.PneuNetGraspEnv` (see its docstring for the task,
+    reward and episode end); they are advanced together as arrays: the pressure update, the damage/slip
+    rules, the reward, the observation and the info are the :mod:`pneunet_env.task` functions on ``(N,)``
+    arrays, and the equilibria are one :func:`pneunet_env.batched.solve_batch` call (numba's compiled
+    loop, split over the cores for large N, or the vectorised numpy back-end without numba). Nothing in
+    ``step`` or ``reset`` loops over envs in Python.
+
+    ## Spaces
+
+    | space                     | value                                                            |
+    |---------------------------|------------------------------------------------------------------|
+    | ``single_action_space``   | ``Box(-1, 1, (1,), float32)``: pressure change / ``max_pressure_step_kpa`` |
+    | ``action_space``          | ``Box(-1, 1, (N, 1), float32)`` (``(N,)`` arrays are accepted too) |
+    | ``single_observation_space`` | ``Box(0, 1, (1,), float32)`` (``[p/p_max, dV]`` with ``observe_volume``) |
+    | ``observation_space``     | the batch of it, ``(N, 1)`` (or ``(N, 2)``)                     |
+
+    Rewards: ``(N,)`` float64; terminations and truncations: ``(N,)`` bool.
+
+    ## Autoreset: ``AutoresetMode.SAME_STEP``
+
+    ``metadata["autoreset_mode"]`` is ``AutoresetMode.SAME_STEP``: a sub-env whose episode ends (terminated
+    or truncated) is reset *within the same* ``step`` call. For that sub-env, the step returns the reward,
+    ``terminated`` and ``truncated`` of the step that ended the episode, but the **first observation of the
+    next episode**; the last observation of the ended episode is ``info["final_obs"][i]`` and that step's
+    info is ``info["final_info"]`` (a dict of arrays, with ``is_success``), both masked by
+    ``info["_final_obs"]`` / ``info["_final_info"]``. The top-level info of a reset sub-env is its reset info.
+
+    Why SAME_STEP (and not Gymnasium's default NEXT_STEP): every ``step`` then acts in a live episode (with
+    NEXT_STEP the step after an episode's end is a reset, its action ignored and its reward 0, so 1 step in
+    ``episode_steps + 1`` = 1 % of the batch's work would be wasted and must be masked out of training
+    data), and it is the convention of Stable-Baselines3 (``terminal_observation``), which
+    :class:`pneunet_env.sb3.SB3VecEnv` passes straight through. For users: bootstrap a truncated episode's
+    value from ``info["final_obs"]``, not from the returned observation; Gymnasium's vector wrappers
+    (``RecordEpisodeStatistics``, ...) read the mode from the metadata and handle it.
+
+    ## Determinism and random streams
+
+    Sub-env ``i`` draws its objects from its own stream, exactly the ``np_random`` a single env gets from
+    ``reset(seed=seed_i)`` (numpy's ``PCG64(SeedSequence(seed_i))``, emulated as arrays by
+    :class:`PCG64Streams`): ``reset(seed=s)`` seeds sub-env ``i`` with ``s + i`` (Gymnasium's sync vector env
+    convention), ``reset(seed=[s_0, ..., s_{N-1}])`` with ``s_i`` (``None`` entries keep their stream), and
+    ``reset()`` continues the streams (the first unseeded ``reset`` picks a random ``s``). An auto-reset draws
+    the next object from the sub-env's stream, as ``env.reset()`` would. So N single envs seeded ``s + i``,
+    reset when their episodes end, and one vector env seeded ``s`` give the same trajectories.
+    ``self.np_random`` (Gymnasium's vector-level generator) is not used; :meth:`sub_env_generator` returns a
+    copy of a sub-env's stream.
+
+    ## Arguments
+
+    ``gym.make_vec("PneuNetGrasp-v0", num_envs=N, render_mode=None, config=None, **overrides)``, or
+    ``PneuNetGraspVectorEnv(num_envs, ...)``:
+
+    * ``config`` / ``overrides``: as for the single env (:func:`pneunet_env.config.load_config`), shared by all.
+    * ``max_episode_steps``: a time limit (what ``gym.make``'s ``TimeLimit`` does: ``truncated`` once a
+      sub-env has taken that many steps); ``make_vec`` passes the registered 100. ``None``: only the
+      task's own end (``squeeze_steps + hold_steps``).
+    * ``backend``: the batched solver's, ``"auto"`` (numba if installed, else numpy), ``"numba"`` or ``"numpy"``.
+    * ``parallel``: numba only: split the solve over the cores (numba's threads, ``NUMBA_NUM_THREADS``); ``None``
+      from :data:`pneunet_env.batched.PARALLEL_MIN_ENVS` envs on. Pass ``False`` when other processes keep the
+      cores busy: numba's threads then wait on each other (a step can take 10x longer).
+
+    ``reset(options=...)`` takes the single env's pins (applied to every sub-env reset by the call; a value
+    may be an ``(N,)`` array, one per sub-env) and ``"reset_mask"`` (an ``(N,)`` bool array: reset only
+    those; the others keep their state and have ``_key`` masks false in the info).
+
+    ## Info
+
+    The single env's keys (see :class:`pneunet_env.env.PneuNetGraspEnv`), each an ``(N,)`` array with a
+    ``_key`` bool mask, plus ``final_obs``/``final_info`` on steps where an episode ended. Every array is
+    fresh (not shared with the env's state or with earlier infos).
+
+    ## Rendering
+
+    ``render_mode="rgb_array"``: ``render()`` returns a tuple of N frames, one per sub-env (as Gymnasium's
+    sync vector env does): ``N * 480 * 360 * 3`` bytes, meant for small N.
+    """
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 20, "autoreset_mode": AutoresetMode.SAME_STEP}
+
+    def __init__(
+        self,
+        num_envs: int = 1,
+        render_mode: str | None = None,
+        config: Any = None,
+        max_episode_steps: int | None = None,
+        backend: str = "auto",
+        parallel: bool | None = None,
+        **overrides: Any,
+    ) -> None:
+        try:
+            n = operator.index(num_envs)
+        except TypeError:
+            raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}") from None
+        if n < 1:
+            raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
+        if backend not in BACKENDS:
+            raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
+        if max_episode_steps is not None:
+            try:
+                max_episode_steps = operator.index(max_episode_steps)
+            except TypeError:
+                raise ValueError(f"max_episode_steps must be a positive integer or None, got {max_episode_steps!r}") \
+                    from None
+            if max_episode_steps < 1:
+                raise ValueError(f"max_episode_steps must be a positive integer or None, got {max_episode_steps!r}")
+        self.num_envs = n
+        self.render_mode = render_mode
+        self.max_episode_steps = max_episode_steps
+        self.backend = backend
+        self.parallel = parallel
+        self.config: EnvConfig = load_config(config, **overrides)
+        cfg = self.config
+        self._params: ActuatorParams = cfg.actuator_params
+        self._options = cfg.solver_options
+        self._task = task.TaskParams.from_config(cfg)
+        self._volume_scale = (
+            free_volume_change(self._params, cfg.pressure_max, self._options) if cfg.observe_volume else None
+        )
+        self.single_action_space = spaces.Box(-1.0, 1.0, (1,), np.float32)
+        if cfg.observe_volume:
+            self.single_observation_space = spaces.Box(
+                np.array([0.0, -np.inf], np.float32), np.array([1.0, np.inf], np.float32), dtype=np.float32
+            )
+        else:
+            self.single_observation_space = spaces.Box(0.0, 1.0, (1,), np.float32)
+        self.action_space = batch_space(self.single_action_space, n)
+        self.observation_space = batch_space(self.single_observation_space, n)
+        self._streams = PCG64Streams(n)
+        self._seeded = False
+        self._eq: task.SolvedState | None = None
+        self._obj: GraspObject | None = None
+        self._thr: task.Thresholds | None = None
+        self._state: task.TaskState = task.initial_state((n,))
+        self._in_hold = np.zeros(n, bool)
+        self._obs: np.ndarray | None = None
+
+    # ---- state, for users ------------------------------------------------------------------------------
+    @property
+    def objects(self) -> GraspObject | None:
+        """The current objects: a :class:`~pneunet_env.objects.GraspObject` of ``(N,)`` arrays (copies)."""
+        return None if self._obj is None else GraspObject(*(np.copy(v) for v in _fields(self._obj)))
+
+    @property
+    def equilibria(self) -> task.SolvedState | None:
+        """The current quasi-static states: a :class:`~pneunet_env.task.SolvedState` of ``(N,)`` arrays (copies)."""
+        return None if self._eq is None else task.SolvedState(*(np.copy(v) for v in self._eq))
+
+    def equilibrium(self, i: int) -> Equilibrium:
+        """Sub-env ``i``'s state as the single env's :class:`~pneunet_env.solver.Equilibrium`."""
+        if self._eq is None:
+            raise RuntimeError("call reset() first")
+        vals = [v[i].item() if isinstance(v[i], np.generic) else v[i] for v in self._eq]
+        return Equilibrium(*vals, float(self._obj.stiffness[i]), float(self._obj.curvature[i]))
+
+    def sub_env_generator(self, i: int) -> np.random.Generator:
+        """A copy of sub-env ``i``'s random stream (what a single env's ``np_random`` would be now)."""
+        return self._streams.generator(i)
+
+    def state_nbytes(self) -> int:
+        """Bytes of state kept between steps, all envs (arrays of the equilibria, objects, thresholds, task
+        state, last observation and random streams; the ``status`` entries as 8-byte references)."""
+        arrays = [*self._eq, *_fields(self._obj), *self._thr, *self._state, self._in_hold, self._obs]
+        return int(sum(np.asarray(a).nbytes for a in arrays)) + self._streams.nbytes
+
+    # ---- Gymnasium API -----------------------------------------------------------------------------------
+    def reset(self, *, seed: int | Sequence[int | None] | None = None, options: dict[str, Any] | None = None):
+        """Reset all sub-envs (or those of ``options["reset_mask"]``); see the class docstring for seeds."""
+        n = self.num_envs
+        if options is not None and not isinstance(options, dict):
+            raise ValueError(f"options must be a dict (object pins, 'reset_mask'), got {options!r}")
+        pins = dict(options or {})
+        mask = pins.pop("reset_mask", None)
+        if mask is not None:
+            mask = np.asarray(mask)
+            if mask.dtype != bool or mask.shape != (n,):
+                raise ValueError(f"options['reset_mask'] must be a bool array of shape ({n},), got "
+                                 f"{mask.dtype} {mask.shape}")
+            if self._eq is None and not mask.all():
+                raise ValueError("the first reset must reset every sub-env (reset_mask all true)")
+        idx = np.arange(n) if mask is None else np.flatnonzero(mask)
+        self._seed(seed, idx)
+        pins = {k: (np.asarray(v)[idx] if np.ndim(v) == 1 and np.shape(v) == (n,) else v) for k, v in pins.items()}
+        obs_r, info_r = self._reset_envs(idx, pins)
+        if mask is None:
+            obs, info = obs_r, self._with_masks(info_r, None)
+        else:
+            obs = self._obs.copy()
+            obs[idx] = obs_r
+            info = {}
+            for k, v in info_r.items():
+                full = np.full(n, _zero_like(np.asarray(v)), dtype=np.asarray(v).dtype)
+                full[idx] = v
+                info[k] = full
+            info = self._with_masks(info, mask)
+        self._obs = obs.copy()
+        return obs, info
+
+    def _seed(self, seed, idx: np.ndarray) -> None:
+        n = self.num_envs
+        if seed is None:
+            if self._seeded:
+                return
+            root = int(np.random.SeedSequence().generate_state(2, np.uint64)[0] >> np.uint64(1))
+            seed = root
+        if isinstance(seed, (int, np.integer)) and not isinstance(seed, (bool, np.bool_)):
+            self._streams.seed(np.arange(n), _seed_words(seed, n))
+            super().reset(seed=int(seed))  # Gymnasium's vector-level np_random (not used by this env)
+        else:
+            try:
+                seeds = list(seed)
+            except TypeError:
+                raise ValueError(f"seed must be None, an int or a list of {n} ints/None, got {seed!r}") from None
+            if len(seeds) != n:
+                raise ValueError(f"seed must be None, an int or a list of num_envs={n} seeds, got {len(seeds)}")
+            given = np.array([s is not None for s in seeds], dtype=bool)
+            if not self._seeded and not given.all():
+                raise ValueError("the first seeding must give a seed for every sub-env (no None)")
+            sel = np.flatnonzero(given)
+            if sel.size:
+                self._streams.seed(sel, _seed_words([seeds[i] for i in sel], sel.size))
+        self._seeded = True
+
+    def _reset_envs(self, idx: np.ndarray, pins: dict[str, Any]) -> tuple[np.ndarray, dict[str, Any]]:
+        """Reset sub-envs ``idx`` (draw objects, rest state); return their observations and info (subset)."""
+        m = idx.size
+        u = self._streams.random(idx, len(RANGE_FIELDS))
+        obj = task.object_from_uniforms(u, self.config, pinned=pins, batch=True)
+        thr = task.object_thresholds(obj, self._task)
+        zeros = np.zeros(m)
+        r = solve_batch(zeros, zeros, zeros, zeros, obj.stiffness, obj.curvature, self._params, self._options,
+                        backend=self.backend, parallel=self.parallel)
+        eq = task.solved_state(zeros.copy(), r.kappa, r.side_strain, r.volume_change, r.energy, r.gradient_norm,
+                               r.min_eigenvalue, r.iterations, r.substeps, r.snapped, r.status, obj.stiffness,
+                               obj.curvature, self._params.chamber_height)
+        st = task.initial_state((m,))
+        if m == self.num_envs:  # every sub-env (the first reset always is: checked in reset)
+            self._eq, self._obj, self._thr, self._state = eq, obj, thr, st
+            self._in_hold = np.zeros(m, bool)
+        else:
+            self._eq = _merge(self._eq, idx, eq)
+            self._obj = _merge(self._obj, idx, obj)
+            self._thr = _merge(self._thr, idx, thr)
+            self._state = _merge(self._state, idx, st)
+            in_hold = self._in_hold.copy()
+            in_hold[idx] = False
+            self._in_hold = in_hold
+        obs = task.observation(eq.pressure, eq.volume_change, self._task, self._volume_scale)
+        info = task.build_info(eq, eq, obj, thr, st, self._task)
+        info = {k: (np.array(v) if np.ndim(v) else np.full(m, v)) for k, v in info.items()}  # own, full arrays
+        return obs, info
+
+    def _check_actions(self, actions) -> np.ndarray:
+        n = self.num_envs
+        try:
+            a = np.asarray(actions, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise ValueError(f"actions must be real numbers of shape ({n}, 1), got {actions!r}") from None
+        if a.shape == (n, 1):
+            a = a[:, 0]
+        elif a.shape != (n,):
+            raise ValueError(f"actions must have shape ({n}, 1) (or ({n},)), got shape {a.shape}")
+        bad = ~np.isfinite(a)
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            raise ValueError(f"actions[{i}] must be finite (no NaN or inf), got {a[i]!r}")
+        return a
+
+    def step(self, actions):
+        if self._eq is None:
+            raise RuntimeError("call reset() before step()")
+        a = self._check_actions(actions)
+        n = self.num_envs
+        prev, obj, thr, tp = self._eq, self._obj, self._thr, self._task
+        pressure, clipped = task.update_pressure(prev.pressure, a, tp)
+        r = solve_batch(prev.curvature, prev.side_strain, prev.pressure, pressure, obj.stiffness, obj.curvature,
+                        self._params, self._options, backend=self.backend, validate=False, parallel=self.parallel)
+        solve = task.solved_state(pressure, r.kappa, r.side_strain, r.volume_change, r.energy, r.gradient_norm,
+                                  r.min_eigenvalue, r.iterations, r.substeps, r.snapped, r.status, obj.stiffness,
+                                  obj.curvature, self._params.chamber_height)
+        failed = ~solve.converged
+        # A failed solve keeps the previous state (as the single env does).
+        eq = task.SolvedState(*(np.where(failed, p, s) for p, s in zip(prev, solve, strict=True))) if failed.any() \
+            else solve
+        out = task.transition(self._state, eq.contact_force, eq.indentation, eq.in_contact, thr, failed, tp)
+        terminated = np.asarray(out.terminated, dtype=bool)
+        truncated = np.asarray(out.truncated, dtype=bool)
+        if self.max_episode_steps is not None:
+            truncated = truncated | (out.state.step >= self.max_episode_steps)
+        reward = np.asarray(out.reward, dtype=np.float64)
+        obs = task.observation(eq.pressure, eq.volume_change, tp, self._volume_scale)
+        info = task.build_info(eq, solve, obj, thr, out.state, tp, out, clipped, failed)
+        own = {id(v) for v in (*eq, *solve, *_fields(obj), *thr, *out.state)}
+        info = {k: (v.copy() if id(v) in own else v) for k, v in info.items()}  # never hand out the state
+        self._eq, self._state, self._in_hold = eq, out.state, np.asarray(out.in_hold, dtype=bool)
+        done = terminated | truncated
+        if not done.any():
+            self._obs = obs.copy()
+            return obs, reward, terminated, truncated, self._with_masks(info, None)
+
+        # SAME_STEP autoreset: the ended step's observation and info go to final_obs / final_info.
+        idx = np.flatnonzero(done)
+        final_info = {k: np.where(done, v, _zero_like(v)) for k, v in info.items()}
+        final_info["is_success"] = done & np.asarray(out.success, dtype=bool)
+        final_info = self._with_masks(final_info, done)
+        final_obs = np.full(n, None, dtype=object)
+        final_obs[idx] = np.fromiter(obs[idx], dtype=object, count=idx.size)
+        obs_r, info_r = self._reset_envs(idx, {})
+        obs[idx] = obs_r
+        for k, v in info_r.items():
+            info[k][idx] = v
+        info = self._with_masks(info, None)
+        info["final_obs"], info["_final_obs"] = final_obs, done.copy()
+        info["final_info"], info["_final_info"] = final_info, done.copy()
+        self._obs = obs.copy()
+        return obs, reward, terminated, truncated, info
+
+    def _with_masks(self, info: dict[str, Any], mask: np.ndarray | None) -> dict[str, Any]:
+        """Gymnasium's vector info: every key with a ``_key`` bool mask (all true if ``mask`` is None)."""
+        base = np.ones(self.num_envs, bool) if mask is None else mask
+        out: dict[str, Any] = {}
+        for k, v in info.items():
+            out[k] = v
+            out["_" + k] = base.copy()  # one array per key, as Gymnasium's vector envs give
+        return out
+
+    # ---- rendering ----------------------------------------------------------------------------------------
+    def render_state(self, i: int):
+        """What :func:`pneunet_env.render.render_frame` draws for sub-env ``i``."""
+        from .render import RenderState
+
+        if self._eq is None:
+            raise RuntimeError("call reset() before render()")
+        eq, obj, thr, st, tp = self._eq, self._obj, self._thr, self._state, self._task
+        return RenderState(
+            curvature=float(eq.curvature[i]),
+            side_strain=float(eq.side_strain[i]),
+            params=self._params,
+            pressure_fraction=float(eq.pressure[i]) / tp.pressure_max,
+            object_curvature=float(obj.curvature[i]),
+            object_thickness=float(obj.thickness[i]),
+            contact_force=float(eq.contact_force[i]),
+            indentation=float(eq.indentation[i]) if eq.in_contact[i] else 0.0,
+            in_contact=bool(eq.in_contact[i]),
+            failure_traction=float(thr.failure_traction[i]),
+            crush_indentation=float(thr.crush_indentation[i]),
+            grip_traction=float(thr.grip_traction[i]),
+            damaged=bool(st.damaged[i]),
+            dropped=bool(st.dropped[i]),
+            in_hold=bool(self._in_hold[i]),
+            progress=int(st.step[i]) / tp.episode_steps,
+            hold_start=tp.squeeze_steps / tp.episode_steps,
+        )
+
+    def render(self) -> tuple[np.ndarray, ...] | None:
+        """``rgb_array``: one frame per sub-env (a tuple of ``(H, W, 3)`` uint8 arrays)."""
+        if self.render_mode is None:
+            gym.logger.warn(
+                "You are calling render method without specifying any render mode. "
+                'Pass render_mode="rgb_array" to gym.make_vec("PneuNetGrasp-v0", ...).'
+            )
+            return None
+        from .render import render_frame
+
+        cfg = self.config
+        return tuple(render_frame(self.render_state(i), cfg.render_width, cfg.render_height,
+                                  chambers=cfg.render_chambers) for i in range(self.num_envs))
+
+    def close_extras(self, **kwargs: Any) -> None:
+        pass

@@ -1,0 +1,67 @@
+"""``pneunet-grasp bench speed --quick``: runs, prints its table, writes JSON and a PNG (no timing thresholds)."""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+import math
+
+import pytest
+
+pytest.importorskip("matplotlib")
+
+from pneunet_env.bench import speed  # noqa: E402
+from pneunet_env.cli import main  # noqa: E402
+
+
+@pytest.fixture(scope="module")
+def quick_run(tmp_path_factory):
+    """One ``bench speed --quick`` run through the console entry point, shared by the tests below."""
+    out = tmp_path_factory.mktemp("bench_speed")
+    buf = io.StringIO()
+    with contextlib.redirect_stdout(buf):
+        rc = main(["bench", "speed", "--quick", "--out", str(out), "--no-progress"])
+    return rc, out, buf.getvalue(), json.loads((out / "speed.json").read_text())
+
+
+def test_quick_run_prints_its_table_and_writes_json_and_png(quick_run):
+    rc, out, text, _ = quick_run
+    assert rc == 0
+    for row in ("single env", "PneuNetGrasp-v0", "CartPole-v1", "ratio", "vector env", "CartPoleVectorEnv",
+                "solve_equilibrium", "memory at N = 16,384", "accuracy over"):
+        assert row in text, row
+    for n in speed.NUM_ENVS:
+        assert any(line.split()[:1] == [str(n)] for line in text.splitlines()), n
+    png = (out / "speed.png").read_bytes()
+    assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 20_000
+
+
+def test_json_holds_every_figure(quick_run):
+    _, _, _, res = quick_run
+    single = res["single_env"]
+    for name in ("PneuNetGrasp-v0", "CartPole-v1"):
+        assert 0.0 < single["median_step_s"][name] < 1.0
+    assert single["ratio"] == pytest.approx(single["median_step_s"]["PneuNetGrasp-v0"]
+                                            / single["median_step_s"]["CartPole-v1"])
+    assert [r["num_envs"] for r in res["vector_env"]] == list(speed.NUM_ENVS)
+    for r in res["vector_env"]:
+        pn, cp = r["steps_per_s"]["PneuNetGrasp-v0"], r["steps_per_s"]["CartPole-v1"]
+        assert pn > 0 and cp > 0 and r["ratio"] == pytest.approx(pn / cp)
+    s = res["solves"]
+    assert s["solve_equilibrium_calls_per_s"] > 0 and s["step_state_calls_per_s"] > 0
+    assert s["solve_batch_num_envs"] == 16384 and s["solve_batch_solves_per_s"] > 0
+    mem = res["memory"]
+    assert mem["num_envs"] == 16384 and 0 < mem["state_bytes_per_env"] <= mem["peak_bytes_per_env"]
+    acc = res["accuracy"]
+    # correctness, not speed: every solve of the run converged to the solver's tolerance
+    assert acc["solves"] > 10_000 and acc["converged_fraction"] == 1.0 and acc["nan_gradient_norms"] == 0
+    assert 0.0 <= acc["worst_gradient_norm"] <= 1e-10
+    assert res["targets"] == speed.TARGETS and math.isfinite(res["wall_s"])
+
+
+def test_table_and_plot_from_a_result(tmp_path, quick_run):
+    _, _, text, res = quick_run
+    assert speed.format_table(res) in text
+    speed.plot(res, tmp_path / "again.png")
+    assert (tmp_path / "again.png").stat().st_size > 20_000

@@ -1,0 +1,402 @@
+"""PneuNetGraspVectorEnv: N single envs == one vector env of N, the vector API, random streams, bad input."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from gymnasium.vector import AutoresetMode
+
+import pneunet_env  # noqa: F401  (registers the environment)
+from pneunet_env import task
+from pneunet_env._jit import HAVE_NUMBA
+from pneunet_env.config import load_config
+from pneunet_env.vector_env import PCG64Streams, PneuNetGraspVectorEnv, _seed_words
+
+# Short episodes and wide object ranges, so that a few hundred steps hold many ends, auto-resets,
+# terminations (damage, slip) and time-limit truncations.
+SHORT = dict(squeeze_steps=8, hold_steps=8)
+VARIED = dict(SHORT, observe_volume=True, object_thickness_mm=[5.0, 15.0], object_curvature_per_m=[2.0, 8.0],
+              object_density_kg_m3=[300.0, 1200.0], object_failure_strain=[0.1, 0.5])
+BACKENDS = ["numba", "numpy"] if HAVE_NUMBA else ["numpy"]
+RTOL, ATOL = 1e-10, 1e-12
+
+
+def _assert_same(a, b, where: str) -> None:
+    """Equal to 1e-10 (floats; relative, with a 1e-12 floor for round-off-level values), exactly otherwise."""
+    if isinstance(a, dict):
+        assert isinstance(b, dict) and set(a) == set(b), (where, set(a) ^ set(b))
+        for k in a:
+            _assert_same(a[k], b[k], f"{where}[{k!r}]")
+        return
+    if isinstance(a, tuple):  # (obs, info), a step's 5-tuple
+        assert isinstance(b, tuple) and len(a) == len(b), where
+        for i, (x, y) in enumerate(zip(a, b, strict=True)):
+            _assert_same(x, y, f"{where}[{i}]")
+        return
+    if a is None or isinstance(a, (str, bool)):
+        assert a == b, (where, a, b)
+        return
+    a, b = np.asarray(a), np.asarray(b)
+    assert a.shape == b.shape, (where, a.shape, b.shape)
+    if a.dtype == object:
+        for i, (x, y) in enumerate(zip(a, b, strict=True)):
+            _assert_same(x, y, f"{where}[{i}]")
+        return
+    assert a.dtype == b.dtype, (where, a.dtype, b.dtype)
+    if a.dtype.kind == "f":
+        np.testing.assert_allclose(b, a, rtol=RTOL, atol=ATOL, err_msg=where)
+    else:
+        np.testing.assert_array_equal(b, a, err_msg=where)
+
+
+# ---- N single envs == one vector env of N ------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_vector_env_equals_n_single_envs_with_auto_resets(backend):
+    """The brief's check, written out: N gym.make envs seeded s+i, each reset when its episode ends."""
+    n, steps, seed = 6, 150, 21
+    singles = [gym.make("PneuNetGrasp-v0", max_episode_steps=16, **VARIED) for _ in range(n)]
+    vec = PneuNetGraspVectorEnv(n, max_episode_steps=16, backend=backend, **VARIED)
+    actions = np.random.default_rng(0).uniform(-1.3, 1.3, (steps, n, 1)).astype(np.float32)
+
+    obs, info = vec.reset(seed=seed)
+    for i, env in enumerate(singles):
+        o, inf = env.reset(seed=seed + i)
+        _assert_same(o, obs[i], f"reset obs {i}")
+        for k, v in inf.items():
+            assert info[f"_{k}"][i]
+            _assert_same(np.asarray(v), info[k][i], f"reset info {i} {k}")
+    ends = terminations = 0
+    for t in range(steps):
+        obs, rew, term, trunc, info = vec.step(actions[t])
+        for i, env in enumerate(singles):
+            o, r, te, tr, inf = env.step(actions[t, i])
+            assert (te, tr) == (term[i], trunc[i]), (t, i)
+            _assert_same(np.float64(r), rew[i], f"t={t} reward {i}")
+            if te or tr:
+                ends += 1
+                terminations += te
+                # the ended step: Gymnasium's final_obs / final_info
+                assert info["_final_obs"][i] and info["_final_info"][i]
+                _assert_same(o, info["final_obs"][i], f"t={t} final obs {i}")
+                for k, v in inf.items():
+                    _assert_same(np.asarray(v), info["final_info"][k][i], f"t={t} final info {i} {k}")
+                o, inf = env.reset()  # the single env's own stream draws the next object
+            else:
+                assert not info.get("_final_obs", np.zeros(n, bool))[i]
+            _assert_same(o, obs[i], f"t={t} obs {i}")
+            for k, v in inf.items():
+                _assert_same(np.asarray(v), info[k][i], f"t={t} info {i} {k}")
+    assert ends >= 3 * n and terminations >= 5  # the run did exercise ends, resets and terminations
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_vector_env_is_the_sync_vector_env_of_single_envs(backend):
+    """Step for step, Gymnasium's SyncVectorEnv(SAME_STEP) of single envs, every key of the vector info included."""
+    n, steps = 5, 120
+    kw = dict(VARIED, max_episode_steps=16)
+    ref = gym.make_vec("PneuNetGrasp-v0", num_envs=n, vectorization_mode="sync",
+                       vector_kwargs={"autoreset_mode": AutoresetMode.SAME_STEP}, **kw)
+    vec = gym.make_vec("PneuNetGrasp-v0", num_envs=n, backend=backend, **kw)
+    assert isinstance(vec.unwrapped, PneuNetGraspVectorEnv)
+    actions = np.random.default_rng(1).uniform(-1.3, 1.3, (steps, n, 1)).astype(np.float32)
+    _assert_same(ref.reset(seed=3), vec.reset(seed=3), "reset")
+    for t in range(steps):
+        got, want = vec.step(actions[t]), ref.step(actions[t])
+        for name, a, b in zip(("obs", "reward", "terminated", "truncated", "info"), want, got, strict=True):
+            _assert_same(a, b, f"t={t} {name}")
+    ref.close()
+    vec.close()
+
+
+def test_default_config_run_converges_and_matches_singles_at_scale():
+    """64 envs at the default config over 250 steps (two and a half episodes): every solve converged."""
+    n, steps = 64, 250
+    vec = gym.make_vec("PneuNetGrasp-v0", num_envs=n)
+    singles = [gym.make("PneuNetGrasp-v0") for _ in range(n)]
+    actions = np.random.default_rng(2).uniform(-1.0, 1.0, (steps, n, 1)).astype(np.float32)
+    obs, _ = vec.reset(seed=100)
+    for i, env in enumerate(singles):
+        env.reset(seed=100 + i)
+    for t in range(steps):
+        obs, rew, term, trunc, info = vec.step(actions[t])
+        assert info["solver_converged"].all() and (info["gradient_norm"] <= 1e-10).all()
+        assert np.all(np.isfinite(obs)) and np.all(np.isfinite(rew))
+        assert vec.observation_space.contains(obs)
+        for i, env in enumerate(singles):
+            o, r, te, tr, _ = env.step(actions[t, i])
+            if te or tr:
+                o, _ = env.reset()
+            np.testing.assert_allclose(obs[i], o, rtol=RTOL, atol=ATOL)
+            assert r == pytest.approx(rew[i], rel=RTOL, abs=ATOL) and (te, tr) == (term[i], trunc[i])
+
+
+# ---- random streams ----------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("seed", [0, 1, 12345, 2**32 - 3, 2**63 + 7, 2**100 + 2**64 - 2])
+def test_streams_are_numpys_pcg64_bit_for_bit(seed):
+    n = 5
+    streams = PCG64Streams(n)
+    streams.seed(np.arange(n), _seed_words(seed, n))
+    draws = streams.random(np.arange(n), 12)
+    for i in range(n):
+        ref = np.random.Generator(np.random.PCG64(np.random.SeedSequence(seed + i)))
+        assert np.array_equal(draws[:, i], ref.random(12)), i
+    # a subset advances alone; generator() is a copy at the current position
+    more = streams.random(np.array([3]), 4)
+    ref3 = np.random.Generator(np.random.PCG64(np.random.SeedSequence(seed + 3)))
+    assert np.array_equal(more[:, 0], ref3.random(16)[12:])
+    g = streams.generator(1)
+    assert np.array_equal(g.random(3), streams.random(np.array([1]), 3)[:, 0])
+
+
+def test_sub_env_streams_are_the_single_envs_np_random():
+    vec = PneuNetGraspVectorEnv(3)
+    vec.reset(seed=7)
+    for i in range(3):
+        single = gym.make("PneuNetGrasp-v0")
+        single.reset(seed=7 + i)
+        assert np.array_equal(vec.sub_env_generator(i).random(8), single.unwrapped.np_random.random(8))
+
+
+def test_seeding_rules():
+    vec = PneuNetGraspVectorEnv(4)
+    a = vec.reset(seed=5)[1]["object_stiffness"]
+    b = vec.reset(seed=[5, 6, 7, 8])[1]["object_stiffness"]
+    assert np.array_equal(a, b)
+    c = vec.reset()[1]["object_stiffness"]  # continues the streams: new objects
+    assert not np.any(c == a)
+    d = vec.reset(seed=[5, None, 7, None])[1]["object_stiffness"]  # None: that stream goes on
+    assert d[0] == a[0] and d[2] == a[2] and d[1] != a[1]
+    e = PneuNetGraspVectorEnv(4).reset()[1]["object_stiffness"]  # unseeded: random, but valid
+    assert np.all(np.isfinite(e))
+    for bad, match in [(-1, "seed"), ([1, 2], "num_envs"), ([1, 2, "x", 4], r"seed\[2\]"), (2**128, "seed")]:
+        with pytest.raises(ValueError, match=match):
+            PneuNetGraspVectorEnv(4).reset(seed=bad)
+    with pytest.raises(ValueError, match="first seeding"):
+        PneuNetGraspVectorEnv(2).reset(seed=[1, None])
+
+
+# ---- the Gymnasium vector API ------------------------------------------------------------------------------
+
+
+def test_make_vec_uses_the_native_env_with_the_registered_time_limit(recwarn):
+    env = gym.make_vec("PneuNetGrasp-v0", num_envs=3)
+    assert isinstance(env, PneuNetGraspVectorEnv) and env.num_envs == 3
+    assert env.max_episode_steps == 100
+    assert env.metadata["autoreset_mode"] is AutoresetMode.SAME_STEP
+    assert not [w for w in recwarn if "autoreset" in str(w.message).lower()]
+    env2 = gym.make_vec("PneuNetGrasp-v0", num_envs=2, observe_volume=True, hold_steps=10, max_episode_steps=60)
+    assert env2.config.hold_steps == 10 and env2.max_episode_steps == 60
+    assert env2.single_observation_space.shape == (2,)
+
+
+def test_spaces_and_returned_types():
+    n = 4
+    env = PneuNetGraspVectorEnv(n)
+    assert env.single_action_space == gym.spaces.Box(-1.0, 1.0, (1,), np.float32)
+    assert env.action_space == gym.spaces.Box(-1.0, 1.0, (n, 1), np.float32)
+    assert env.single_observation_space == gym.spaces.Box(0.0, 1.0, (1,), np.float32)
+    assert env.observation_space == gym.spaces.Box(0.0, 1.0, (n, 1), np.float32)
+    obs, info = env.reset(seed=0)
+    assert obs.shape == (n, 1) and obs.dtype == np.float32 and env.observation_space.contains(obs)
+    single_keys = set(gym.make("PneuNetGrasp-v0").reset(seed=0)[1])
+    assert {k for k in info if not k.startswith("_")} == single_keys
+    for k in single_keys:
+        assert info[k].shape == (n,) and info[f"_{k}"].dtype == bool and info[f"_{k}"].all(), k
+    env.action_space.seed(0)
+    obs, rew, term, trunc, info = env.step(env.action_space.sample())
+    assert obs.shape == (n, 1) and env.observation_space.contains(obs)
+    assert rew.shape == (n,) and rew.dtype == np.float64
+    assert term.shape == trunc.shape == (n,) and term.dtype == trunc.dtype == bool
+    assert "final_obs" not in info  # only on steps where an episode ends
+    env.step(np.zeros(n, np.float32))  # (N,) actions are accepted too
+    env.close()
+
+
+def test_same_seed_same_trajectory_and_fresh_arrays():
+    n = 3
+    env = PneuNetGraspVectorEnv(n, **SHORT)
+    actions = np.random.default_rng(5).uniform(-1, 1, (40, n, 1)).astype(np.float32)
+
+    def run():
+        out = [env.reset(seed=9)]
+        out += [env.step(a) for a in actions]
+        return out
+
+    a, b = run(), run()
+    for x, y in zip(a, b, strict=True):
+        for u, v in zip(x, y, strict=True):
+            _assert_same(u, v, "rerun")
+    # nothing returned shares memory with the env's state or with another step's output
+    o1, *_, i1 = env.step(actions[0])
+    o2, *_, i2 = env.step(actions[1])
+    assert not np.shares_memory(o1, o2)
+    state = [*env._eq, *env._thr, *env._state, env._obs, *(getattr(env._obj, f) for f in env._obj.__dataclass_fields__)]
+    for k, v in i1.items():
+        if isinstance(v, np.ndarray) and v.dtype != object:
+            assert not np.shares_memory(v, i2[k]), k
+            assert not any(np.shares_memory(v, s) for s in state if isinstance(s, np.ndarray)), k
+    keep = env.equilibria
+    i2["curvature"][:] = 123.0  # a caller mutating the info does not touch the env
+    o2[:] = -5.0
+    np.testing.assert_array_equal(env.equilibria.curvature, keep.curvature)
+
+
+def test_autoreset_same_step_contract():
+    n = 4
+    env = PneuNetGraspVectorEnv(n, **SHORT)  # episodes end at step 16 at the latest
+    obs, _ = env.reset(seed=0)
+    actions = np.full((n, 1), 0.3, np.float32)
+    for step in range(1, 17):
+        obs, rew, term, trunc, info = env.step(actions)
+        t, done = step, term | trunc
+        if done.any():
+            break
+    assert done.any()
+    assert np.array_equal(info["_final_obs"], done) and np.array_equal(info["_final_info"], done)
+    fi = info["final_info"]
+    assert np.array_equal(fi["_is_success"], done) and fi["is_success"].dtype == bool
+    for i in np.flatnonzero(done):
+        assert info["step"][i] == 0 and obs[i, 0] == 0.0  # already reset: the next episode's first observation
+        assert fi["step"][i] == t and info["final_obs"][i].shape == (1,)
+    for i in np.flatnonzero(~done):
+        assert info["final_obs"][i] is None and not fi["_step"][i]
+
+
+def test_reset_mask_and_per_env_pins():
+    n = 4
+    env = PneuNetGraspVectorEnv(n)
+    obs, info = env.reset(seed=1, options={"object_stiffness": np.array([1e-5, 1e-4, 1e-3, 1e-2])})
+    np.testing.assert_array_equal(info["object_stiffness"], [1e-5, 1e-4, 1e-3, 1e-2])
+    for _ in range(5):
+        obs, *_ = env.step(np.ones((n, 1), np.float32))
+    before = env.equilibria
+    mask = np.array([True, False, True, False])
+    obs2, info2 = env.reset(options={"reset_mask": mask, "object_stiffness": 0.05})
+    np.testing.assert_array_equal(info2["_pressure"], mask)
+    assert np.all(obs2[mask] == 0.0) and np.array_equal(obs2[~mask], obs[~mask])
+    after = env.equilibria
+    np.testing.assert_array_equal(after.pressure[~mask], before.pressure[~mask])
+    assert np.all(after.pressure[mask] == 0.0)
+    np.testing.assert_array_equal(env.objects.stiffness, [0.05, 1e-4, 0.05, 1e-2])
+
+
+def test_gymnasium_vector_wrappers_handle_it():
+    n = 3
+    env = gym.wrappers.vector.RecordEpisodeStatistics(PneuNetGraspVectorEnv(n, **SHORT))
+    env.reset(seed=0)
+    returns = np.zeros(n)
+    seen = 0
+    for _ in range(40):
+        _, rew, term, trunc, info = env.step(np.full((n, 1), 0.5, np.float32))
+        returns += rew
+        if "episode" in info:
+            for i in np.flatnonzero(info["_episode"]):
+                assert info["episode"]["r"][i] == pytest.approx(returns[i])
+                returns[i] = 0.0
+                seen += 1
+    assert seen >= n
+
+
+def test_render_rgb_array_matches_the_single_env():
+    env = PneuNetGraspVectorEnv(2, render_mode="rgb_array")
+    single = gym.make("PneuNetGrasp-v0", render_mode="rgb_array")
+    env.reset(seed=4)
+    single.reset(seed=5)  # sub-env 1
+    for _ in range(12):
+        env.step(np.ones((2, 1), np.float32))
+        single.step(np.ones(1, np.float32))
+    frames = env.render()
+    assert len(frames) == 2 and frames[1].shape == (360, 480, 3) and frames[1].dtype == np.uint8
+    np.testing.assert_array_equal(frames[1], single.render())
+    with pytest.warns(UserWarning, match="render mode"):
+        assert PneuNetGraspVectorEnv(1).render() is None  # no render mode: a warning, no frame
+
+
+def test_equilibrium_of_a_sub_env_is_the_single_envs():
+    env = PneuNetGraspVectorEnv(2)
+    single = gym.make("PneuNetGrasp-v0")
+    env.reset(seed=0, options={"object_stiffness": 1e-3})
+    single.reset(seed=1, options={"object_stiffness": 1e-3})
+    for _ in range(10):
+        env.step(np.ones((2, 1), np.float32))
+        single.step(np.ones(1, np.float32))
+    a, b = env.equilibrium(1), single.unwrapped.equilibrium
+    for f in a.__dataclass_fields__:
+        assert getattr(a, f) == pytest.approx(getattr(b, f), rel=RTOL, abs=ATOL), f
+    assert 0 < env.state_nbytes() / env.num_envs <= 1024
+
+
+# ---- bad input ---------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(("actions", "match"), [
+    (np.array([[0.1], [np.nan], [0.2]]), r"actions\[1\].*nan"),
+    (np.array([0.1, 0.2, np.inf]), r"actions\[2\].*inf"),
+    (np.zeros((3, 2)), r"shape \(3, 2\)"),
+    (np.zeros(4), r"shape \(4,\)"),
+    ("abc", "real numbers"),
+])
+def test_bad_actions_raise_naming_the_value(actions, match):
+    env = PneuNetGraspVectorEnv(3)
+    env.reset(seed=0)
+    with pytest.raises(ValueError, match=match):
+        env.step(actions)
+
+
+def test_bad_arguments_raise():
+    with pytest.raises(RuntimeError, match="reset"):
+        PneuNetGraspVectorEnv(2).step(np.zeros((2, 1)))
+    for kwargs, match in [(dict(num_envs=0), "num_envs"), (dict(num_envs=2.5), "num_envs"),
+                          (dict(backend="cuda"), "backend"), (dict(render_mode="human"), "render_mode"),
+                          (dict(max_episode_steps=0), "max_episode_steps"), (dict(stiffnes=1.0), "stiffnes")]:
+        with pytest.raises(ValueError, match=match):
+            PneuNetGraspVectorEnv(**{"num_envs": 2, **kwargs})
+    env = PneuNetGraspVectorEnv(2)
+    for options, match in [({"stiffness": 1.0}, "unknown reset option"),
+                           ({"object_stiffness": -1.0}, "object_stiffness"),
+                           ({"object_stiffness": [1e-3, 1e-3, 1e-3]}, "object_stiffness"),
+                           ({"reset_mask": [True, False]}, "reset_mask"), ("x", "options")]:
+        with pytest.raises(ValueError, match=match):
+            env.reset(seed=0, options=options)
+    with pytest.raises(ValueError, match="first reset"):
+        PneuNetGraspVectorEnv(2).reset(options={"reset_mask": np.array([True, False])})
+
+
+# ---- the shared task functions on arrays ---------------------------------------------------------------------
+
+
+def test_batch_objects_equal_single_objects_without_a_loop(monkeypatch):
+    cfg = load_config(**VARIED)
+    u = np.random.default_rng(3).random((5, 200))
+    cases = [(None, [task.object_from_uniforms(u[:, i], cfg) for i in range(200)]),
+             ({"object_stiffness": 1e-3},
+              [task.sample_object(_Fixed(u[:, i]), cfg, pinned={"object_stiffness": 1e-3}) for i in range(200)])]
+    # the batch path must not fall back on the per-object (np.vectorize) eq. 3.2
+    import pneunet_env.objects as objects
+
+    def boom(*a, **k):
+        raise AssertionError("a Python loop over objects")
+
+    monkeypatch.setattr(objects, "_k_from_mu", boom)
+    monkeypatch.setattr(objects, "_mu_from_k", boom)
+    for pins, ref in cases:
+        batch = task.object_from_uniforms(u, cfg, pinned=pins)
+        for f in batch.__dataclass_fields__:
+            np.testing.assert_allclose(getattr(batch, f), [getattr(o, f) for o in ref], rtol=1e-14, err_msg=f)
+    with pytest.raises(ValueError, match="curvature_per_m"):
+        task.object_from_uniforms(u, cfg, pinned={"object_curvature_per_m": np.where(np.arange(200) == 7, -1.0, 4.0)})
+
+
+class _Fixed:
+    """A generator stand-in that returns given uniforms (to feed sample_object)."""
+
+    def __init__(self, u):
+        self.u = u
+
+    def random(self, shape):
+        return self.u.reshape(shape)
