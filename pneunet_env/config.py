@@ -23,6 +23,7 @@ from functools import cached_property
 from pathlib import Path
 from typing import Any
 
+from .models import MODELS
 from .params import ActuatorParams
 from .solver import SolverOptions
 from .units import PhysicalActuator, Scales
@@ -116,11 +117,16 @@ class EnvConfig:
     solver_min_step: float = 1e-9
     solver_max_jump: float = 0.02
     solver_eig_floor: float = 1e-10
+    # model size (pneunet_env.models): "full", or "linear"/"auto" (single env only)
+    model: str = "full"
 
     def __post_init__(self) -> None:
         for f in dataclasses.fields(self):
             name, value = f.name, getattr(self, f.name)
-            if name in RANGE_FIELDS:
+            if name == "model":
+                if value not in MODELS:
+                    raise ValueError(f"config key 'model' must be one of {MODELS}, got {value!r}")
+            elif name in RANGE_FIELDS:
                 object.__setattr__(self, name, _range(name, value))
             elif name in _BOOL_FIELDS:
                 if not isinstance(value, bool):

@@ -401,26 +401,27 @@ def solved_state(
 
     The contact quantities follow :class:`pneunet_env.solver.Equilibrium` exactly: top-wall strain
     ``e_m = d (1 + e_s) kappa~``; indentation ``delta~ = (kappa~ - kappa~_obj)/(kappa~ kappa~_obj)`` where
-    ``kappa~ > kappa~_obj``, else 0; traction ``F~ = k~ delta~``; in contact where also ``k~ > 0``.
+    ``kappa~ > kappa~_obj`` and there is an object (``k~ > 0``), else 0; traction ``F~ = k~ delta~``; in contact
+    where also ``k~ > 0``.
     ``status_code`` indexes :data:`pneunet_env.solver.STATUS_MESSAGES` (``<= 1``: converged; -1 in a batch: not
     solved).
     """
     if not isinstance(kappa, np.ndarray):  # one environment: plain Python arithmetic, the solver's own
         kc = object_curvature
-        delta = (kappa - kc) / (kappa * kc) if kappa > kc else 0.0
+        delta = (kappa - kc) / (kappa * kc) if (kappa > kc and object_stiffness > 0.0) else 0.0
         return SolvedState(
             pressure, kappa, side_strain, chamber_height * (1.0 + side_strain) * kappa, object_stiffness * delta,
             delta, object_stiffness > 0.0 and kappa > kc, volume_change, energy, gradient_norm, min_eigenvalue,
             status_code <= 1, iterations, substeps, snapped, STATUS_MESSAGES[status_code],
         )
     kc = object_curvature
-    above = kappa > kc
+    above = (kappa > kc) & (np.asarray(object_stiffness) > 0.0)
     with np.errstate(divide="ignore", invalid="ignore"):
         delta = np.where(above, (kappa - kc) / (kappa * kc), 0.0)
     code = np.asarray(status_code)
     return SolvedState(
         pressure, kappa, side_strain, chamber_height * (1.0 + side_strain) * kappa, object_stiffness * delta, delta,
-        (object_stiffness > 0.0) & above, volume_change, energy, gradient_norm, min_eigenvalue,
+        above, volume_change, energy, gradient_norm, min_eigenvalue,
         (code <= 1) & (code >= 0), iterations, substeps, snapped, _STATUS_BY_CODE[code + 1],
     )
 

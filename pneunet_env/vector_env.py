@@ -344,6 +344,11 @@ class PneuNetGraspVectorEnv(VectorEnv):
         self.parallel = parallel
         self.config: EnvConfig = load_config(config, **overrides)
         cfg = self.config
+        if cfg.model != "full":
+            raise ValueError(
+                f"config key 'model' = {cfg.model!r}: the vector env solves the full model only (the batched solver); "
+                "use the single env for 'linear' or 'auto' (the solver study shows 'auto' saves no time here)"
+            )
         self._params: ActuatorParams = cfg.actuator_params
         self._options = cfg.solver_options
         self._task = task.TaskParams.from_config(cfg)
