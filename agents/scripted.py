@@ -7,15 +7,27 @@ pressure they read is their only memory), so one instance serves any number of e
 ``predict`` accepts a batch of observations as well, like a stable-baselines3 model.
 
 Targets are fractions of ``max_pressure_kpa`` (the observation's units); :meth:`from_kpa` converts.
+The same policies drive the rigid gripper of :mod:`agents.rigid`, whose observation is the jaw's
+indentation over its travel: there a target is a fraction of the travel.
+
+Every policy here also has ``begin_episode(info)``, called by :func:`agents.evaluate.run_episode` with
+the ``info`` of ``reset``: a blind policy ignores it (the oracle of :mod:`agents.oracle` reads the
+object from it). :func:`load_ramp` reads a ramp saved as JSON by :mod:`agents.search`
+(``agents/best_ramp.json`` is the ``best-ramp`` policy).
 """
 
 from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from pneunet_env.config import EnvConfig
 
-__all__ = ["LinearRamp", "StepPolicy"]
+__all__ = ["LinearRamp", "StepPolicy", "load_ramp", "save_ramp"]
 
 
 class _TargetPolicy:
@@ -47,6 +59,9 @@ class _TargetPolicy:
     def reset(self) -> None:
         """Nothing to reset (stateless); present for symmetry with stateful policies."""
 
+    def begin_episode(self, info: dict[str, Any] | None = None) -> None:
+        """Called with ``reset``'s ``info`` at each episode's start; a blind policy ignores it."""
+
 
 class LinearRamp(_TargetPolicy):
     """Raise the pressure linearly from 0 to ``target`` over ``n_steps`` steps, then hold it.
@@ -77,6 +92,10 @@ class LinearRamp(_TargetPolicy):
     def __repr__(self) -> str:
         return f"LinearRamp(target={self.target:g}, n_steps={self.n_steps})"
 
+    def to_dict(self) -> dict[str, Any]:
+        """``{"kind": "linear_ramp", "target": ..., "n_steps": ...}`` (``target`` a fraction of the maximum)."""
+        return {"kind": "linear_ramp", "target": self.target, "n_steps": self.n_steps}
+
 
 class StepPolicy(_TargetPolicy):
     """Go to ``target`` as fast as the action allows (a pressure step), then hold it.
@@ -96,3 +115,52 @@ class StepPolicy(_TargetPolicy):
 
     def __repr__(self) -> str:
         return f"StepPolicy(target={self.target:g})"
+
+    def to_dict(self) -> dict[str, Any]:
+        """``{"kind": "step", "target": ...}``."""
+        return {"kind": "step", "target": self.target}
+
+
+def save_ramp(policy: LinearRamp | StepPolicy, path: str | os.PathLike, **metadata: Any) -> Path:
+    """Write ``policy.to_dict()`` and ``metadata`` (how it was found, its score) as JSON; returns the path."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    data = {**policy.to_dict(), **metadata}
+    path.write_text(json.dumps(data, indent=1, default=_jsonable) + "\n")
+    return path
+
+
+def _jsonable(x: Any) -> Any:
+    if isinstance(x, np.generic):
+        return x.item()
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    if isinstance(x, Path):
+        return str(x)
+    raise TypeError(f"cannot write {type(x).__name__} to JSON")
+
+
+def load_ramp(path: str | os.PathLike, config: EnvConfig | None = None) -> LinearRamp | StepPolicy:
+    """The ramp saved by :func:`save_ramp` (``kind`` ``linear_ramp`` or ``step``), for ``config``'s action scale.
+
+    Raises:
+        ValueError: the file is missing, not JSON, or does not describe a ramp (named).
+    """
+    path = Path(path)
+    try:
+        data = json.loads(path.read_text())
+    except OSError as exc:
+        raise ValueError(f"cannot read ramp parameters from {str(path)!r}: {exc}") from None
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"ramp file {str(path)!r} is not JSON: {exc}") from None
+    if not isinstance(data, dict):
+        raise ValueError(f"ramp file {str(path)!r} must hold a JSON object, got {type(data).__name__}")
+    kind = data.get("kind")
+    try:
+        if kind == "linear_ramp":
+            return LinearRamp(data["target"], data["n_steps"], config)
+        if kind == "step":
+            return StepPolicy(data["target"], config)
+    except KeyError as exc:
+        raise ValueError(f"ramp file {str(path)!r} lacks the key {exc.args[0]!r}") from None
+    raise ValueError(f"ramp file {str(path)!r}: unknown kind {kind!r} (expected 'linear_ramp' or 'step')")

@@ -1,14 +1,21 @@
-"""``pneunet-grasp demo``: the main job. A blind, scripted linear pressure ramp against objects from
-gels to elastomers: success, damage and slip rates per object stiffness.
+"""``pneunet-grasp demo``: the main job. The best blind pressure ramp against objects from gels to elastomers,
+with the oracle (which knows each object) and a blind rigid gripper beside it: success, damage and slip rates
+by object stiffness.
 
-The stiffness axis ``k~ = k_obj w/mu`` is cut into log-spaced bins (default: 8 half-decades from 1e-5
-to 1e-1). Each episode draws its ``k~`` log-uniformly inside its bin (from a generator seeded by
-``--seed``, the bin and the episode), pins it with ``reset(options={"object_stiffness": k})``, and runs
-:class:`agents.scripted.LinearRamp` from 0 to each target pressure (``--targets-kpa``) over
-``--ramp-steps`` steps, then holds it. Everything else is the environment's config (the paper's
-object size, water-like density; see ``configs/env/default.yaml``). For each target, a table gives, per
-bin, the fraction of episodes held to the end (success), damaged, or dropped (slip), and the mean
-peak traction in kPa. ``--json`` saves the numbers.
+The stiffness axis ``k~ = k_obj w/mu`` is cut into log-spaced bins (default: the four decades from 1e-5 to
+1e-1). Each episode draws its ``k~`` log-uniformly inside its bin (from a generator seeded by ``--seed`` and
+the bin), pins it with ``reset(options={"object_stiffness": k})``, and runs each policy on the same objects:
+
+* ``best-ramp``: the linear pressure ramp found by ``python -m agents.search`` (``agents/best_ramp.json``): one
+  blind schedule, tuned once over the object distribution, the same for every object;
+* ``oracle``: knows the object and steps to the best constant pressure for it (:mod:`agents.oracle`): the
+  feasibility ceiling, not a blind policy;
+* ``rigid``: a rigid, position-controlled gripper closing to a fixed indentation, tuned like best-ramp
+  (``RigidGrasp-v0``, :mod:`agents.rigid`).
+
+``--targets-kpa`` adds plain linear ramps (to each target over ``--ramp-steps`` steps). Everything else is the
+environment's config: the paper's object size, water-like density, the damage and slip thresholds of
+``docs/env.md``. ``--json`` saves every episode. ``pneunet-grasp evaluate`` makes the plots.
 """
 
 from __future__ import annotations
@@ -21,15 +28,20 @@ from pathlib import Path
 
 import numpy as np
 
+DEFAULT_POLICIES = ("best-ramp", "oracle", "rigid")
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--targets-kpa", type=float, nargs="+", default=[20.0, 40.0, 60.0],
-                        help="ramp targets in kPa, one table each (default 20 40 60)")
-    parser.add_argument("--ramp-steps", type=int, default=40, help="steps from 0 to the target (default 40)")
+    parser.add_argument("--policy", action="append", default=None, metavar="NAME",
+                        help="policies to run (repeatable; default best-ramp, oracle, rigid; see agents.policies)")
+    parser.add_argument("--targets-kpa", type=float, nargs="+", default=[],
+                        help="also run plain linear ramps to these targets (kPa)")
+    parser.add_argument("--ramp-steps", type=int, default=40, help="steps of those ramps from 0 to the target "
+                        "(default 40)")
     parser.add_argument("--k-min", type=float, default=1e-5, help="smallest k~ (default 1e-5)")
     parser.add_argument("--k-max", type=float, default=1e-1, help="largest k~ (default 1e-1)")
-    parser.add_argument("--bins", type=int, default=8, help="log-spaced stiffness bins (default 8)")
-    parser.add_argument("--episodes", type=int, default=5, help="episodes per bin and target (default 5)")
+    parser.add_argument("--bins", type=int, default=4, help="log-spaced stiffness bins (default 4: decades)")
+    parser.add_argument("--episodes", type=int, default=10, help="episodes per bin and policy (default 10)")
     parser.add_argument("--seed", type=int, default=0, help="base seed (default 0)")
     parser.add_argument("--config", default=None, help="environment config YAML (default: built-in defaults)")
     parser.add_argument("--json", type=Path, default=None, help="also write the results as JSON to this path")
@@ -43,97 +55,113 @@ def _progress(total: int):
     return tqdm(total=total, desc="demo", unit="episode", leave=False)
 
 
-def evaluate_ramp(env, policy, stiffness: float, seed: int) -> dict:
-    """Run one episode with the object's ``k~`` pinned; return its outcome."""
-    obs, info = env.reset(seed=seed, options={"object_stiffness": stiffness})
-    peak, ret, steps = 0.0, 0.0, 0
-    while True:
-        obs, reward, terminated, truncated, info = env.step(policy(obs))
-        ret += reward
-        steps += 1
-        peak = max(peak, info["contact_force_kpa"])
-        if not info["solver_converged"]:
-            raise RuntimeError(f"solver failed at k~={stiffness:g}, step {steps}: {info['solver_status']}")
-        if terminated or truncated:
-            break
-    return {
-        "stiffness": stiffness,
-        "shear_modulus_kpa": info["object_shear_modulus_kpa"],
-        "success": bool(info["is_success"]),
-        "damaged": bool(info["damaged"]),
-        "dropped": bool(info["dropped"]),
-        "peak_traction_kpa": peak,
-        "return": ret,
-        "steps": steps,
-    }
-
-
 def run(args: argparse.Namespace) -> int:
-    import gymnasium as gym
+    from agents.evaluate import SOFT_MAX, STIFF_MIN, run_episode
+    from agents.oracle import feasible_stiffness
+    from agents.policies import make_policy
 
-    import pneunet_env  # noqa: F401  (registers the environment)
-    from agents.scripted import LinearRamp
-
+    from ..config import load_config
     from ..objects import stiffness_per_modulus
 
     if args.bins < 1 or args.episodes < 1 or args.ramp_steps < 1:
         raise SystemExit("--bins, --episodes and --ramp-steps must be >= 1")
     if not 0.0 < args.k_min < args.k_max:
         raise SystemExit(f"need 0 < --k-min < --k-max, got {args.k_min} and {args.k_max}")
-    env = gym.make("PneuNetGrasp-v0", config=args.config)
-    cfg = env.unwrapped.config
-    for t in args.targets_kpa:
-        if not 0.0 <= t <= cfg.max_pressure_kpa:
-            raise SystemExit(f"--targets-kpa: {t} is outside [0, max_pressure_kpa = {cfg.max_pressure_kpa}]")
+    try:
+        cfg = load_config(args.config)
+        specs = list(args.policy or DEFAULT_POLICIES)
+        for t in args.targets_kpa:
+            if not 0.0 <= t <= cfg.max_pressure_kpa:
+                raise ValueError(f"--targets-kpa: {t} is outside [0, max_pressure_kpa = {cfg.max_pressure_kpa}]")
+            specs.append(f"ramp:target_kpa={t:g},steps={args.ramp_steps}")
+        entries = [make_policy(s, cfg) for s in specs]
+    except ValueError as exc:
+        raise SystemExit(f"pneunet-grasp demo: {exc}") from None
     edges = np.logspace(math.log10(args.k_min), math.log10(args.k_max), args.bins + 1)
-    unit_mu = stiffness_per_modulus(
-        np.mean(cfg.object_thickness_mm), np.mean(cfg.object_curvature_per_m), cfg.scales
-    )
+    draws = [edges[b] * (edges[b + 1] / edges[b]) ** np.random.default_rng([args.seed, b]).random(args.episodes)
+             for b in range(args.bins)]
+    unit_mu = float(stiffness_per_modulus(np.mean(cfg.object_thickness_mm), np.mean(cfg.object_curvature_per_m),
+                                          cfg.scales))
     t0 = time.perf_counter()
-    bar = _progress(len(args.targets_kpa) * args.bins * args.episodes)
+    bar = _progress(len(entries) * args.bins * args.episodes)
     results = []
-    for target in args.targets_kpa:
-        policy = LinearRamp.from_kpa(target, args.ramp_steps, cfg)
-        for b in range(args.bins):
-            rng = np.random.default_rng([args.seed, b])
-            ks = edges[b] * (edges[b + 1] / edges[b]) ** rng.random(args.episodes)
+    for entry in entries:
+        env = entry.make_env(cfg)
+        for b, ks in enumerate(draws):
             for e, k in enumerate(ks):
-                r = evaluate_ramp(env, policy, float(k), seed=args.seed * 100_003 + b * 1_000 + e)
-                r.update(target_kpa=target, bin=b)
+                r = run_episode(env, entry.policy, seed=args.seed * 100_003 + b * 1_000 + e,
+                                options={"object_stiffness": float(k)})
+                if r["solver_failed"]:
+                    raise RuntimeError(f"{entry.name}: the solver failed at k~={k:g}")
+                r.update(policy=entry.name, bin=b)
                 results.append(r)
                 if bar is not None:
                     bar.update()
+        env.close()
     if bar is not None:
         bar.close()
-    env.close()
     elapsed = time.perf_counter() - t0
 
-    print(f"PneuNetGrasp-v0 demo: linear ramp 0 -> target over {args.ramp_steps} steps, then held; "
-          f"{cfg.squeeze_steps} squeeze + {cfg.hold_steps} hold steps; {args.episodes} episodes per bin")
-    print(f"object: H = {cfg.object_thickness_mm} mm, kappa_obj = {cfg.object_curvature_per_m} /m, "
-          f"rho = {cfg.object_density_kg_m3} kg/m^3, failure strain {cfg.object_failure_strain}; "
-          f"friction {cfg.friction_coefficient}, {cfg.grip_faces} faces")
-    print("damage: traction > 3 eps_f mu_obj, or indentation > "
-          f"{cfg.crush_fraction:g} H;  slip (hold phase): traction < rho g H / (faces mu_f)")
-    for target in args.targets_kpa:
-        rows = [r for r in results if r["target_kpa"] == target]
-        print(f"\nramp to {target:g} kPa (p~ = {target / cfg.shear_modulus_kpa:.2f})")
-        print(f"{'k~ bin':>19}  {'mu_obj (kPa)':>17}  {'success':>7}  {'damaged':>7}  {'slipped':>7}  "
-              f"{'peak F (kPa)':>12}")
-        for b in range(args.bins):
-            rb = [r for r in rows if r["bin"] == b]
-            lo, hi = edges[b], edges[b + 1]
-            rate = lambda key: np.mean([r[key] for r in rb])  # noqa: B023
-            peak = np.mean([r["peak_traction_kpa"] for r in rb])
-            print(f"{lo:8.1e} - {hi:8.1e}  {lo / unit_mu:7.3g} - {hi / unit_mu:7.3g}  {rate('success'):7.0%}  "
-                  f"{rate('damaged'):7.0%}  {rate('dropped'):7.0%}  {peak:12.3g}")
-        print(f"{'all':>19}  {'':>17}  {np.mean([r['success'] for r in rows]):7.0%}  "
-              f"{np.mean([r['damaged'] for r in rows]):7.0%}  {np.mean([r['dropped'] for r in rows]):7.0%}")
+    main = entries[0]
+    print(f"PneuNetGrasp-v0 demo: blind grasps of objects from gels to elastomers; {cfg.squeeze_steps} squeeze + "
+          f"{cfg.hold_steps} hold steps; {args.episodes} objects per bin, the same for every policy")
+    print(f"object: H = {_fmt(cfg.object_thickness_mm)} mm, kappa_obj = {_fmt(cfg.object_curvature_per_m)} /m, "
+          f"rho = {_fmt(cfg.object_density_kg_m3)} kg/m^3, failure strain {_fmt(cfg.object_failure_strain)}; "
+          f"friction {cfg.friction_coefficient:g}, {cfg.grip_faces} faces")
+    print(f"damage: traction > 3 eps_f mu_obj, or indentation > {cfg.crush_fraction:g} H;  "
+          "slip (hold phase): traction < rho g H / (faces mu_f)")
+    others = entries[1:]
+    print(f"\n{main.name}: {main.label}")
+    head = f"{'k~ bin':>19}  {'mu_obj (kPa)':>17}  {'success':>7}  {'damaged':>7}  {'slipped':>7}  {'peak F (kPa)':>12}"
+    head += "".join(f"  {e.name[:16]:>16}" for e in others)
+    print(head)
+    rate = lambda rs, key: float(np.mean([r[key] for r in rs])) if rs else math.nan  # noqa: E731
+    for b in range(args.bins):
+        rb = [r for r in results if r["bin"] == b and r["policy"] == main.name]
+        lo, hi = edges[b], edges[b + 1]
+        line = (f"{lo:8.1e} - {hi:8.1e}  {lo / unit_mu:7.3g} - {hi / unit_mu:7.3g}  {rate(rb, 'success'):7.0%}  "
+                f"{rate(rb, 'damaged'):7.0%}  {rate(rb, 'dropped'):7.0%}  {rate(rb, 'peak_traction_kpa'):12.3g}")
+        for e in others:
+            ro = [r for r in results if r["bin"] == b and r["policy"] == e.name]
+            line += f"  {_outcome(ro):>16}"
+        print(line)
+    print()
+    for e in entries:
+        rs = [r for r in results if r["policy"] == e.name]
+        soft = [r for r in rs if r["stiffness"] < SOFT_MAX]
+        stiff = [r for r in rs if r["stiffness"] >= STIFF_MIN]
+        print(f"{e.name:>16}: success {rate(rs, 'success'):4.0%} overall; soft (k~ < 1e-4) "
+              f"{_pct(rate(soft, 'success'))}, stiff (k~ >= 1e-3) {_pct(rate(stiff, 'success'))}   [{e.label}]")
+    if others:
+        print("(other policies' columns: success, and the failures as d = damaged, s = slipped)")
+    k_feas = feasible_stiffness(cfg)
+    print(f"\nBelow k~ = {k_feas:.2g} (mu_obj = {k_feas / unit_mu:.3g} kPa) no state of any gripper both holds the "
+          "object and spares it: the grip needs F = k_obj delta >= rho g H / (faces mu_f), which takes an "
+          "indentation past the crush depth. See docs/results.md.")
     print(f"\n{len(results)} episodes in {elapsed:.1f} s")
     if args.json is not None:
         args.json.parent.mkdir(parents=True, exist_ok=True)
         args.json.write_text(json.dumps({"args": {k: (str(v) if isinstance(v, Path) else v)
                                                   for k, v in vars(args).items() if k != "func"},
+                                         "policies": {e.name: e.label for e in entries},
                                          "bin_edges": edges.tolist(), "episodes": results}, indent=1))
         print(f"wrote {args.json}")
     return 0
+
+
+def _fmt(r) -> str:
+    return f"{r[0]:g}" if r[0] == r[1] else f"{r[0]:g}-{r[1]:g}"
+
+
+def _pct(x: float) -> str:
+    return "   -" if math.isnan(x) else f"{x:4.0%}"
+
+
+def _outcome(rs) -> str:
+    """``"40% (d60 s0)"``: success, then the damaged and slipped percentages."""
+    if not rs:
+        return "-"
+    s = np.mean([r["success"] for r in rs])
+    d = np.mean([r["damaged"] for r in rs])
+    sl = np.mean([r["dropped"] for r in rs])
+    return f"{s:.0%} (d{d * 100:.0f} s{sl * 100:.0f})"

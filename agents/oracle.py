@@ -1,0 +1,152 @@
+"""The oracle: it knows the object and picks the best constant target pressure for it. Not blind.
+
+It is the feasibility ceiling of the ramp family. At each episode's start (:meth:`Oracle.begin_episode`,
+given ``reset``'s ``info``) it reads the object (``k~``, ``w kappa_obj``) and its thresholds, follows the
+quasi-static loading path from rest with the env's own solver (:func:`pneunet_env.load_path`, on a pressure
+grid of ``resolution_kpa``), and picks the pressure ``p*`` with the widest margin
+
+    margin(p) = min( log(F(p) / F_grip),  -log max_{p' <= p} damage_ratio(p') )
+
+where ``damage_ratio = max(F / F_failure, delta / delta_crush)``: the grip must hold at ``p*`` and no pressure on
+the way up may damage. It then steps to ``p*`` as fast as the action allows and holds it. If the best margin is
+negative, no constant target on the loading path both holds and spares that object. The plan uses the full
+model (the env's default, ``model: full``); with ``model: linear`` or ``auto`` the env's states differ slightly
+from the plan's.
+
+That the ceiling is a property of the thresholds, not of the schedule's blindness, follows from a bound that
+no schedule (monotone or not) can beat: the object is held only if ``F = k_obj delta >= F_grip`` and intact only
+if ``delta <= crush_fraction H`` (and ``F <= sigma_f``), a condition on the *state* alone. So where
+``k_obj crush_fraction H < F_grip`` (:func:`feasible_stiffness`) no state, hence no schedule, succeeds.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Any
+
+import numpy as np
+
+from pneunet_env.config import EnvConfig
+from pneunet_env.solver import load_path
+
+__all__ = ["Oracle", "OraclePlan", "plan_target", "feasible_stiffness"]
+
+
+class OraclePlan(dict):
+    """The oracle's choice for one object: ``target`` (fraction of ``p_max``), ``pressure_kpa``, ``margin``
+    (natural log; > 0 is feasible), ``feasible`` (bool), ``grip_ratio``, ``damage_ratio`` at the target."""
+
+
+def plan_target(
+    object_stiffness: float,
+    object_curvature: float,
+    failure_traction: float,
+    crush_indentation: float,
+    grip_traction: float,
+    config: EnvConfig,
+    resolution_kpa: float = 0.5,
+) -> OraclePlan:
+    """The best constant pressure for one object (all arguments dimensionless: ``/mu``, ``/w``).
+
+    Args:
+        object_stiffness: ``k~``.
+        object_curvature: ``w kappa_obj``.
+        failure_traction, crush_indentation, grip_traction: the object's thresholds (``F~_f``, ``delta~_c``,
+            ``F~_g``; :func:`pneunet_env.task.object_thresholds`).
+        config: the env's config (actuator, pressure range, solver).
+        resolution_kpa: the pressure grid's spacing.
+    """
+    if not resolution_kpa > 0.0:
+        raise ValueError(f"resolution_kpa must be > 0, got {resolution_kpa!r}")
+    p_max = config.pressure_max
+    n = max(2, int(math.ceil(config.max_pressure_kpa / resolution_kpa)) + 1)
+    ps = np.linspace(0.0, p_max, n)
+    lp = load_path(ps, object_stiffness, object_curvature, config.actuator_params, config.solver_options)
+    if not lp.converged.all():  # pragma: no cover - never seen; reported rather than hidden
+        raise RuntimeError(f"oracle: the loading path did not converge for k~={object_stiffness:g}")
+    F = lp.contact_force
+    in_contact = np.array([e.in_contact for e in lp.equilibria])
+    delta = np.where(in_contact, lp.indentation, 0.0)
+    with np.errstate(divide="ignore"):
+        damage = np.maximum(F / failure_traction if failure_traction > 0 else np.inf * (F > 0),
+                            delta / crush_indentation)
+        worst = np.maximum.accumulate(damage)
+        grip = F / grip_traction
+        margin = np.minimum(np.log(grip), -np.log(worst))
+    margin = np.where(np.isnan(margin), -np.inf, margin)
+    i = int(np.argmax(margin))
+    return OraclePlan(
+        target=float(ps[i] / p_max),
+        pressure_kpa=float(ps[i] * config.shear_modulus_kpa),
+        margin=float(margin[i]),
+        feasible=bool(margin[i] >= 0.0),
+        grip_ratio=float(grip[i]),
+        damage_ratio=float(worst[i]),
+    )
+
+
+def feasible_stiffness(config: EnvConfig, density_kg_m3: float | None = None) -> float:
+    """The smallest ``k~`` at which some state both holds the object and spares it: ``F~_grip / (crush_fraction H/w)``.
+
+    ``F~_grip = rho g H / (grip_faces mu_f mu)`` and the crush depth is ``crush_fraction H``, so ``H`` cancels:
+    ``k~ = rho g w / (grip_faces mu_f crush_fraction mu)``, set by the density alone. With a density range, the
+    lightest objects (``density_kg_m3`` default: the range's low end) are the easiest to hold, so below this ``k~``
+    no object of the config can be held intact. (The failure-stress rule never binds first at the paper's
+    size: ``k_obj H = 0.0076 sigma_f``; it is not part of this bound.)
+    """
+    from pneunet_env.task import TaskParams
+
+    rho = config.object_density_kg_m3[0] if density_kg_m3 is None else float(density_kg_m3)
+    tp = TaskParams.from_config(config)
+    # the grip traction per mm of thickness, rho g (1 mm) in kPa, over the faces and the friction, in units of mu
+    grip = rho * tp.gravity_m_s2 * 1e-6 / (tp.grip_faces * tp.friction_coefficient) / tp.shear_modulus_kpa
+    return float(grip * tp.width_mm / tp.crush_fraction)
+
+
+class Oracle:
+    """Knows each object (from ``reset``'s ``info``) and steps to its best constant pressure (:func:`plan_target`).
+
+    Args:
+        config: the env's config (the defaults if ``None``).
+        resolution_kpa: the pressure grid the choice is made on.
+
+    Call :meth:`begin_episode` with ``reset``'s ``info`` before the episode's first action
+    (:func:`agents.evaluate.run_episode` does). ``plan`` holds the last choice.
+    """
+
+    blind = False
+
+    def __init__(self, config: EnvConfig | None = None, resolution_kpa: float = 0.5) -> None:
+        self.config = EnvConfig() if config is None else config
+        self.resolution_kpa = float(resolution_kpa)
+        self.step_fraction = self.config.max_pressure_step_kpa / self.config.max_pressure_kpa
+        self.plan: OraclePlan | None = None
+        self._cache: dict[tuple[float, ...], OraclePlan] = {}
+
+    def begin_episode(self, info: dict[str, Any] | None = None) -> None:
+        if info is None or "object_stiffness" not in info:
+            raise ValueError("the oracle needs reset()'s info (object_stiffness, thresholds) at each episode start")
+        cfg = self.config
+        mu, w = cfg.shear_modulus_kpa, cfg.width_mm
+        key = (float(info["object_stiffness"]), float(info["object_curvature"]), float(info["failure_traction_kpa"]),
+               float(info["crush_indentation_mm"]), float(info["grip_traction_kpa"]))
+        if key not in self._cache:
+            self._cache[key] = plan_target(key[0], key[1], key[2] / mu, key[3] / w, key[4] / mu, cfg,
+                                           self.resolution_kpa)
+        self.plan = self._cache[key]
+
+    def reset(self) -> None:
+        self.plan = None
+
+    def __call__(self, observation) -> np.ndarray:
+        if self.plan is None:
+            raise RuntimeError("Oracle: call begin_episode(info) with reset()'s info first")
+        p = np.asarray(observation, dtype=np.float64)[..., 0]
+        a = (self.plan["target"] - p) / self.step_fraction
+        return np.clip(a, -1.0, 1.0)[..., None].astype(np.float32)
+
+    def predict(self, observation, state=None, episode_start=None, deterministic: bool = True):
+        return self(observation), state
+
+    def __repr__(self) -> str:
+        return f"Oracle(resolution_kpa={self.resolution_kpa:g})"

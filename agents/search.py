@@ -1,0 +1,446 @@
+"""The best-ramp search: one blind schedule, tuned once over the object distribution, fixed for all objects.
+
+``python -m agents.search`` grid-searches :class:`agents.scripted.LinearRamp`'s two parameters, the target
+(a fraction of ``p_max``; for the rigid gripper, of its jaw travel) and the ramp duration (steps from 0 to the
+target), maximising the success rate over ``--objects`` objects drawn from the env's object distribution with
+fixed seeds (``reset(seed=seed * 1_000_003 + i)``, the same objects for every candidate). It runs the env
+itself (``PneuNetGrasp-v0`` or ``RigidGrasp-v0``), so the score is exactly the env's. A coarse grid comes first,
+then a finer one around the best target. Ties (common: a plateau of equally good targets) go to the higher mean
+return (a gentler failure: a late slip costs less than a crush), then to the middle of the tied plateau.
+
+The result is written to ``agents/best_ramp.json`` (``--gripper pneunet``, the ``best-ramp`` policy) or
+``agents/best_rigid.json`` (``--gripper rigid``, the ``rigid`` policy), so both are fixed, reproducible policies.
+
+``python -m agents.search --sensitivity --out DIR`` runs the threshold sensitivity study instead
+(:data:`SENSITIVITY_SETTINGS`, :func:`sensitivity_study`): for each setting of the thresholds that decide the
+soft side (object density, friction, the crush rule, object size), a fresh best-ramp and rigid search, then the
+best-ramp, the oracle and the rigid gripper on a stiffness grid. It writes ``DIR/sensitivity.json``,
+``DIR/sensitivity.md`` (a table) and ``DIR/sensitivity.png``. It is a study of the thresholds, *not* the
+environment's defaults: the defaults stay the physically justified ones of ``docs/env.md``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pneunet_env.config import EnvConfig, load_config
+
+from .evaluate import _bar, parse_overrides, run_episode
+from .scripted import LinearRamp, save_ramp
+
+__all__ = ["Candidate", "object_seeds", "score", "grid_search", "search_ramp", "SENSITIVITY_SETTINGS",
+           "strain_crush_fraction", "sensitivity_study", "add_arguments", "run", "main"]
+
+COARSE_TARGETS = tuple(round(0.025 * i, 4) for i in range(1, 41))  # 0.025 .. 1.0
+DURATIONS = (1, 10, 20, 30, 40, 50, 60, 80)
+"""Ramp durations searched (steps from 0 to the target; 1 is a step, limited by the largest action)."""
+
+
+@dataclass
+class Candidate:
+    """One ramp's score over the search objects."""
+
+    target: float
+    n_steps: int
+    success_rate: float
+    damage_rate: float
+    slip_rate: float
+    mean_return: float
+    success: np.ndarray  # per object (bool)
+    stiffness: np.ndarray  # per object (k~)
+
+    def summary(self) -> dict[str, Any]:
+        soft = self.stiffness < 1e-4
+        stiff = self.stiffness >= 1e-3
+        rate = lambda m: float(self.success[m].mean()) if m.any() else math.nan  # noqa: E731
+        return {"target": self.target, "n_steps": self.n_steps, "success_rate": self.success_rate,
+                "damage_rate": self.damage_rate, "slip_rate": self.slip_rate, "mean_return": self.mean_return,
+                "success_rate_soft": rate(soft), "success_rate_stiff": rate(stiff),
+                "objects_soft": int(soft.sum()), "objects_stiff": int(stiff.sum())}
+
+
+def object_seeds(n: int, seed: int = 0) -> list[int]:
+    """The search's fixed episode seeds: ``seed * 1_000_003 + i``."""
+    return [seed * 1_000_003 + i for i in range(n)]
+
+
+def score(env, policy, seeds: Sequence[int]) -> dict[str, Any]:
+    """Run ``policy`` once per seed (objects from the env's distribution); rates and per-object arrays."""
+    res = [run_episode(env, policy, s) for s in seeds]
+    return {
+        "success_rate": float(np.mean([r["success"] for r in res])),
+        "damage_rate": float(np.mean([r["damaged"] for r in res])),
+        "slip_rate": float(np.mean([r["dropped"] for r in res])),
+        "mean_return": float(np.mean([r["return"] for r in res])),
+        "success": np.array([r["success"] for r in res]),
+        "stiffness": np.array([r["stiffness"] for r in res]),
+    }
+
+
+def grid_search(env, config: EnvConfig, seeds: Sequence[int], targets: Sequence[float], durations: Sequence[int],
+                bar=None, cache: dict | None = None) -> list[Candidate]:
+    """Score every ``LinearRamp(target, n_steps)``; ``cache`` (keyed by the pair) avoids repeats."""
+    cache = {} if cache is None else cache
+    out = []
+    for t in targets:
+        for n in durations:
+            key = (round(float(t), 10), int(n))
+            if key not in cache:
+                s = score(env, LinearRamp(key[0], key[1], config), seeds)
+                cache[key] = Candidate(key[0], key[1], s["success_rate"], s["damage_rate"], s["slip_rate"],
+                                       s["mean_return"], s["success"], s["stiffness"])
+            out.append(cache[key])
+            if bar is not None:
+                bar.update()
+    return out
+
+
+def best_candidate(cands: Sequence[Candidate]) -> Candidate:
+    """Highest success; then highest mean return; then the middle of the tied plateau (by target, then steps)."""
+    top = max(c.success_rate for c in cands)
+    tied = [c for c in cands if c.success_rate >= top - 1e-12]
+    top_ret = max(c.mean_return for c in tied)
+    tied = sorted({(c.target, c.n_steps): c for c in tied if c.mean_return >= top_ret - 1e-9}.values(),
+                  key=lambda c: (c.target, c.n_steps))
+    return tied[(len(tied) - 1) // 2]
+
+
+def make_env(config: EnvConfig, gripper: str):
+    """The env a search runs on: ``PneuNetGrasp-v0`` (``gripper="pneunet"``) or ``RigidGrasp-v0``."""
+    import gymnasium as gym
+
+    import pneunet_env  # noqa: F401  (registers PneuNetGrasp-v0)
+
+    if gripper == "rigid":
+        from . import rigid  # noqa: F401  (registers RigidGrasp-v0)
+
+        return gym.make("RigidGrasp-v0", config=config)
+    if gripper != "pneunet":
+        raise ValueError(f"gripper must be 'pneunet' or 'rigid', got {gripper!r}")
+    return gym.make("PneuNetGrasp-v0", config=config)
+
+
+def search_ramp(config: EnvConfig | None = None, gripper: str = "pneunet", n_objects: int = 200, seed: int = 0,
+                targets: Sequence[float] = COARSE_TARGETS, durations: Sequence[int] = DURATIONS,
+                refine: float = 0.005, progress: bool = True) -> tuple[Candidate, list[Candidate]]:
+    """The best ramp over ``n_objects`` seeded objects: a grid over ``targets`` x ``durations``, then a grid of
+    spacing ``refine`` around the best target (``0`` skips it). Returns ``(best, every candidate scored)``."""
+    config = EnvConfig() if config is None else config
+    if int(n_objects) != n_objects or n_objects < 1:
+        raise ValueError(f"n_objects must be an integer >= 1, got {n_objects!r}")
+    targets = sorted({float(t) for t in targets})
+    if not targets or targets[0] <= 0.0 or targets[-1] > 1.0:
+        raise ValueError(f"targets must lie in (0, 1], got {targets!r}")
+    durations = sorted({int(n) for n in durations})
+    if not durations or durations[0] < 1:
+        raise ValueError(f"durations must be integers >= 1, got {durations!r}")
+    env = make_env(config, gripper)
+    seeds = object_seeds(n_objects, seed)
+    spacing = float(min(np.diff(targets))) if len(targets) > 1 else 0.0
+    bar = _bar(len(durations) * len(targets), f"search {gripper}", progress, unit="ramp")
+    cache: dict = {}
+    best = best_candidate(grid_search(env, config, seeds, targets, durations, bar, cache))
+    if refine > 0 and spacing > refine:
+        lo, hi = max(refine, best.target - spacing), min(1.0, best.target + spacing)
+        fine = [float(t) for t in np.arange(lo, hi + refine / 2, refine) if 0.0 < t <= 1.0]
+        if bar is not None:
+            bar.total += len(fine) * len(durations)
+            bar.refresh()
+        grid_search(env, config, seeds, fine, durations, bar, cache)
+        best = best_candidate(list(cache.values()))
+    if bar is not None:
+        bar.close()
+    env.close()
+    return best, list(cache.values())
+
+
+def save_best(best: Candidate, path: Path, config: EnvConfig, gripper: str, n_objects: int, seed: int,
+              overrides: dict[str, Any], elapsed: float) -> Path:
+    """Write the found ramp (with its score and how it was found) as JSON."""
+    from .rigid import default_jaw_travel_mm
+
+    meta: dict[str, Any] = {"gripper": gripper}
+    if gripper == "rigid":
+        travel = default_jaw_travel_mm(config)
+        meta.update(target_mm=best.target * travel, jaw_travel_mm=travel)
+    else:
+        meta.update(target_kpa=best.target * config.max_pressure_kpa)
+    meta.update(
+        search={"objects": n_objects, "seed": seed, "episode_seeds": "seed * 1000003 + i",
+                "objective": "success rate over the env's object distribution; ties: mean return, then the "
+                             "middle of the plateau",
+                "config_overrides": overrides, "elapsed_s": round(elapsed, 2)},
+        score=best.summary(),
+        created_by=f"python -m agents.search --gripper {gripper} --objects {n_objects} --seed {seed}",
+    )
+    return save_ramp(LinearRamp(best.target, best.n_steps, config), path, **meta)
+
+
+def plot_search(cands: Sequence[Candidate], best: Candidate, path: Path, config: EnvConfig, gripper: str) -> Path:
+    """Success rate vs target, one line per duration; the best marked."""
+    from .evaluate import _matplotlib
+    from .rigid import default_jaw_travel_mm
+
+    plt = _matplotlib()
+    full, unit = ((default_jaw_travel_mm(config), "mm") if gripper == "rigid" else (config.max_pressure_kpa, "kPa"))
+    fig, ax = plt.subplots(figsize=(7, 3.8))
+    durations = sorted({c.n_steps for c in cands})
+    cmap = plt.get_cmap("viridis")
+    for j, n in enumerate(durations):
+        cs = sorted((c for c in cands if c.n_steps == n), key=lambda c: c.target)
+        ax.plot([c.target * full for c in cs], [c.success_rate for c in cs], color=cmap(j / max(1, len(durations) - 1)),
+                lw=1.3, label=f"{n} steps")
+    ax.plot(best.target * full, best.success_rate, "*", color="red", ms=14, mec="black", label="best")
+    ax.set_xlabel(f"ramp target ({unit})")
+    ax.set_ylabel("success rate")
+    ax.set_title(f"{'rigid jaw' if gripper == 'rigid' else 'pressure'} ramp search: best {best.target * full:.3g} "
+                 f"{unit} over {best.n_steps} steps, success {best.success_rate:.1%}", fontsize=9)
+    ax.legend(fontsize=7, ncol=2, title="ramp duration", title_fontsize=7)
+    ax.grid(True, alpha=0.3)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
+# ---------------------------------------------------------------------------------------------
+# Sensitivity study of the thresholds (NOT the env's defaults)
+# ---------------------------------------------------------------------------------------------
+
+
+def strain_crush_fraction(config: EnvConfig | None = None) -> float:
+    """The ``crush_fraction`` that makes ``delta > crush_fraction H`` the hoop-strain rule ``delta kappa_obj > eps_f``.
+
+    Eq. 3.2's object is a thin ring; its indentation is a radial shrink of the whole ring, whose hoop strain is
+    ``delta kappa_obj``. At the middle of the config's ranges: ``eps_f / (H kappa_obj)`` (7.5 at the paper's
+    object: 0.3 / (10 mm x 4 /m)).
+    """
+    c = EnvConfig() if config is None else config
+    mid = lambda r: 0.5 * (r[0] + r[1])  # noqa: E731
+    return mid(c.object_failure_strain) / (mid(c.object_thickness_mm) * 1e-3 * mid(c.object_curvature_per_m))
+
+
+_STRAIN = strain_crush_fraction()
+
+SENSITIVITY_SETTINGS: tuple[tuple[str, str, dict[str, Any]], ...] = (
+    ("default", "default: rho 1000 kg/m^3, mu_f 0.5, crushed at delta > H", {}),
+    ("rho100", "dense foam: rho 100", {"object_density_kg_m3": 100.0}),
+    ("rho30", "light foam: rho 30", {"object_density_kg_m3": 30.0}),
+    ("muf1", "dry silicone friction: mu_f 1.0", {"friction_coefficient": 1.0}),
+    ("strain", f"hoop-strain crush: delta kappa_obj > 0.3 (crush_fraction {_STRAIN:g})",
+     {"crush_fraction": _STRAIN}),
+    ("rho100+strain", "rho 100 + hoop-strain crush", {"object_density_kg_m3": 100.0, "crush_fraction": _STRAIN}),
+    ("rho30+strain", "rho 30 + hoop-strain crush", {"object_density_kg_m3": 30.0, "crush_fraction": _STRAIN}),
+    ("rhomix+strain", "rho 30-1000 (log-uniform) + hoop-strain crush",
+     {"object_density_kg_m3": [30.0, 1000.0], "crush_fraction": _STRAIN}),
+    ("rho30+strain+size", "rho 30 + hoop-strain crush + object size +-10 % (kappa_obj 3.6-4.4 /m)",
+     {"object_density_kg_m3": 30.0, "crush_fraction": _STRAIN, "object_curvature_per_m": [3.6, 4.4]}),
+)
+"""``(key, description, config overrides)``: the threshold settings of the sensitivity study."""
+
+
+def sensitivity_study(out: Path, settings=SENSITIVITY_SETTINGS, n_objects: int = 120, grid: int = 25,
+                      episodes: int = 1, seed: int = 0, progress: bool = True,
+                      log: Callable[[str], Any] = print) -> list[dict[str, Any]]:
+    """For each setting: search best-ramp and rigid, evaluate them and the oracle on a grid; write the outputs.
+
+    Settings whose object properties are ranges get ``max(episodes, 4)`` episodes per grid point.
+    """
+    from .evaluate import evaluate_policies, regime_summary, stiffness_grid
+    from .oracle import Oracle, feasible_stiffness
+    from .policies import PolicyEntry
+    from .rigid import default_jaw_travel_mm
+
+    coarse = tuple(round(0.05 * i, 4) for i in range(1, 21))
+    durations = (1, 25, 50)
+    results = []
+    for key, desc, overrides in settings:
+        t0 = time.perf_counter()
+        config = load_config(None, **overrides)
+        best_p, _ = search_ramp(config, "pneunet", n_objects, seed, coarse, durations, 0.01, progress)
+        best_r, _ = search_ramp(config, "rigid", n_objects, seed, coarse, durations, 0.01, progress)
+        travel = default_jaw_travel_mm(config)
+        entries = [
+            PolicyEntry("best-ramp", f"best-ramp ({best_p.target * config.max_pressure_kpa:.3g} kPa, "
+                        f"{best_p.n_steps} steps)", LinearRamp(best_p.target, best_p.n_steps, config)),
+            PolicyEntry("oracle", "oracle", Oracle(config), blind=False),
+            PolicyEntry("rigid", f"rigid ({best_r.target * travel:.3g} mm, {best_r.n_steps} steps)",
+                        LinearRamp(best_r.target, best_r.n_steps, config), env_id="RigidGrasp-v0", command="jaw"),
+        ]
+        ranged = any(isinstance(v, list) for v in overrides.values())
+        ks = stiffness_grid(config, grid)
+        rows = evaluate_policies(entries, config, ks, max(episodes, 4) if ranged else episodes, seed, progress)
+        reg = regime_summary(rows)
+        res = {
+            "key": key, "description": desc, "overrides": overrides,
+            "feasible_stiffness": feasible_stiffness(config),
+            "best_ramp": {"target_kpa": best_p.target * config.max_pressure_kpa, "n_steps": best_p.n_steps,
+                          "search_success_rate": best_p.success_rate},
+            "rigid": {"target_mm": best_r.target * travel, "n_steps": best_r.n_steps,
+                      "search_success_rate": best_r.success_rate, "jaw_travel_mm": travel},
+            "regimes": reg, "rows": rows, "elapsed_s": time.perf_counter() - t0,
+        }
+        results.append(res)
+        rate = lambda p, g: f"{reg[p][g]['success_rate']:4.0%}"  # noqa: E731, B023
+        log(f"{key:>18}: best-ramp {res['best_ramp']['target_kpa']:5.1f} kPa soft {rate('best-ramp', 'soft')} stiff "
+            f"{rate('best-ramp', 'stiff')} | oracle soft {rate('oracle', 'soft')} stiff {rate('oracle', 'stiff')} | "
+            f"rigid {res['rigid']['target_mm']:5.1f} mm soft {rate('rigid', 'soft')} stiff {rate('rigid', 'stiff')}"
+            f"  ({res['elapsed_s']:.0f} s)")
+    out.mkdir(parents=True, exist_ok=True)
+    meta = {"note": "a sensitivity study of the damage/slip thresholds; NOT the environment's defaults",
+            "objects_per_search": n_objects, "stiffness_grid": grid, "episodes": episodes, "seed": seed}
+    (out / "sensitivity.json").write_text(json.dumps({"meta": meta, "settings": results}, indent=1) + "\n")
+    (out / "sensitivity.md").write_text(sensitivity_table(results))
+    plot_sensitivity(results, out / "sensitivity.png")
+    return results
+
+
+def sensitivity_table(results) -> str:
+    """A markdown table: per setting, success on soft / stiff objects for best-ramp, oracle and rigid."""
+    lines = [
+        "| setting | feasible from k~ | best-ramp | best-ramp soft / stiff | oracle soft / stiff | rigid | "
+        "rigid soft / stiff |",
+        "|---|---|---|---|---|---|---|",
+    ]
+    for r in results:
+        reg = r["regimes"]
+        pct = lambda p, g: f"{reg[p][g]['success_rate']:.0%}"  # noqa: E731, B023
+        lines.append(
+            f"| {r['description']} | {r['feasible_stiffness']:.2g} | {r['best_ramp']['target_kpa']:.3g} kPa, "
+            f"{r['best_ramp']['n_steps']} steps | {pct('best-ramp', 'soft')} / {pct('best-ramp', 'stiff')} | "
+            f"{pct('oracle', 'soft')} / {pct('oracle', 'stiff')} | {r['rigid']['target_mm']:.3g} mm | "
+            f"{pct('rigid', 'soft')} / {pct('rigid', 'stiff')} |"
+        )
+    return "\n".join(lines) + "\n"
+
+
+def plot_sensitivity(results, path: Path) -> Path:
+    """Small multiples: success vs ``k~`` for best-ramp, oracle and rigid, one panel per setting."""
+    from .evaluate import SOFT_MAX, STIFF_MIN, _matplotlib, _style
+
+    plt = _matplotlib()
+    n = len(results)
+    ncol = 3
+    nrow = math.ceil(n / ncol)
+    fig, axes = plt.subplots(nrow, ncol, figsize=(4.2 * ncol, 2.7 * nrow), sharex=True, sharey=True, squeeze=False)
+    for ax, res in zip(axes.flat, results, strict=False):
+        ks = [r["object_stiffness"] for r in res["rows"]]
+        lo, hi = min(ks) / 1.3, max(ks) * 1.3
+        ax.axvspan(lo, SOFT_MAX, color="#4c9be8", alpha=0.12, lw=0)
+        ax.axvspan(STIFF_MIN, hi, color="#f0a030", alpha=0.14, lw=0)
+        ax.axvline(res["feasible_stiffness"], color="#555555", ls=(0, (1, 2)), lw=1.2)
+        for name in ("best-ramp", "oracle", "rigid"):
+            rs = sorted((r for r in res["rows"] if r["policy"] == name), key=lambda r: r["object_stiffness"])
+            st = _style(name)
+            st.pop("ms", None)
+            st["marker"] = ""
+            ax.plot([r["object_stiffness"] for r in rs], [r["success_rate"] for r in rs], label=name, **st)
+        ax.set_xscale("log")
+        ax.set_xlim(lo, hi)
+        ax.set_ylim(-0.05, 1.08)
+        ax.grid(True, alpha=0.3)
+        reg = res["regimes"]["best-ramp"]
+        ax.set_title(f"{res['description']}\nbest-ramp {res['best_ramp']['target_kpa']:.3g} kPa: soft "
+                     f"{reg['soft']['success_rate']:.0%}, stiff {reg['stiff']['success_rate']:.0%}", fontsize=7.5)
+    for ax in list(axes.flat)[n:]:
+        ax.axis("off")
+    for ax in axes[-1]:
+        ax.set_xlabel("k~")
+    for ax in axes[:, 0]:
+        ax.set_ylabel("success rate")
+    handles, labels = axes.flat[0].get_legend_handles_labels()
+    handles.append(plt.Line2D([], [], color="#555555", ls=(0, (1, 2))))
+    labels.append("below this k~ no state both holds and spares the object")
+    fig.legend(handles, labels, loc="lower center", ncol=4, fontsize=8, frameon=False)
+    fig.suptitle("Sensitivity of the soft-object result to the thresholds (a study, not the env's defaults); "
+                 "soft (k~ < 1e-4) and stiff (k~ >= 1e-3) shaded", fontsize=9)
+    fig.tight_layout(rect=(0, 0.04, 1, 0.97))
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+# ---------------------------------------------------------------------------------------------
+# Command line: python -m agents.search
+# ---------------------------------------------------------------------------------------------
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--gripper", choices=("pneunet", "rigid"), default="pneunet",
+                        help="pneunet: the best-ramp policy (default); rigid: the rigid gripper's jaw ramp")
+    parser.add_argument("--objects", type=int, default=200,
+                        help="objects (seeded episodes) per candidate (default 200)")
+    parser.add_argument("--seed", type=int, default=0, help="base seed of the objects (default 0)")
+    parser.add_argument("--targets", type=float, nargs="+", default=list(COARSE_TARGETS),
+                        help="coarse grid of targets, fractions of p_max or of the jaw travel (default 0.025 .. 1)")
+    parser.add_argument("--durations", type=int, nargs="+", default=list(DURATIONS),
+                        help=f"ramp durations in steps (default {' '.join(map(str, DURATIONS))})")
+    parser.add_argument("--refine", type=float, default=0.005,
+                        help="spacing of the fine grid around the best target (default 0.005; 0: none)")
+    parser.add_argument("--out", type=Path, default=None,
+                        help="where to write the result (default agents/best_ramp.json or agents/best_rigid.json); "
+                             "with --sensitivity, the output directory")
+    parser.add_argument("--plot", type=Path, default=None, help="also plot success vs target to this PNG")
+    parser.add_argument("--config", default=None, help="environment config YAML (default: the env's defaults)")
+    parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                        help="override an environment config key (repeatable; VALUE is YAML)")
+    parser.add_argument("--sensitivity", action="store_true",
+                        help="run the threshold sensitivity study instead (writes sensitivity.{json,md,png} to --out)")
+    parser.add_argument("--grid", type=int, default=25, help="--sensitivity: stiffness grid size (default 25)")
+    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+
+
+def run(args: argparse.Namespace) -> int:
+    from .policies import BEST_RAMP_PATH, BEST_RIGID_PATH
+
+    if args.sensitivity:
+        out = Path("docs/img/results") if args.out is None else args.out
+        sensitivity_study(out, n_objects=args.objects if args.objects != 200 else 120, grid=args.grid, seed=args.seed,
+                          progress=not args.quiet)
+        print(f"wrote {out / 'sensitivity.json'}, {out / 'sensitivity.md'}, {out / 'sensitivity.png'}")
+        return 0
+    try:
+        overrides = parse_overrides(args.overrides)
+        config = load_config(args.config, **overrides)
+        t0 = time.perf_counter()
+        best, cands = search_ramp(config, args.gripper, args.objects, args.seed, args.targets, args.durations,
+                                  args.refine, progress=not args.quiet)
+    except ValueError as exc:
+        raise SystemExit(f"agents.search: {exc}") from None
+    elapsed = time.perf_counter() - t0
+    out = args.out or (BEST_RIGID_PATH if args.gripper == "rigid" else BEST_RAMP_PATH)
+    save_best(best, out, config, args.gripper, args.objects, args.seed,
+              {**({"config": str(args.config)} if args.config else {}), **overrides}, elapsed)
+    s = best.summary()
+    unit = "of the jaw travel" if args.gripper == "rigid" else "of p_max"
+    print(f"best {args.gripper} ramp: target {best.target:.4g} {unit}, {best.n_steps} steps: success "
+          f"{s['success_rate']:.1%} (soft {s['success_rate_soft']:.1%} of {s['objects_soft']}, stiff "
+          f"{s['success_rate_stiff']:.1%} of {s['objects_stiff']}), damaged {s['damage_rate']:.1%}, slipped "
+          f"{s['slip_rate']:.1%}; {len(cands)} candidates x {args.objects} objects in {elapsed:.0f} s")
+    print(f"wrote {out}")
+    if args.plot is not None:
+        plot_search(cands, best, args.plot, config, args.gripper)
+        print(f"wrote {args.plot}")
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m agents.search", description=__doc__.split("\n\n")[0])
+    add_arguments(parser)
+    return run(parser.parse_args(argv))
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,613 @@
+"""``pneunet-grasp train --config configs/train/ppo.yaml``: train a stable-baselines3 agent on ``PneuNetGrasp-v0``.
+
+The config is an rl-zoo3 hyperparameter file: a mapping from the env id to its hyperparameters
+(``policy``, ``n_envs``, ``n_timesteps``, ``normalize``, ``policy_kwargs`` and the algorithm's own keyword
+arguments: ``n_steps``, ``batch_size``, ``learning_rate``, ...). ``policy_kwargs`` and ``normalize`` may be
+YAML mappings or rl-zoo3's strings (``"dict(net_arch=[64, 64])"``, ``"{'norm_obs': False}"``), read without
+``eval``. Keys of this package, beside rl-zoo3's:
+
+==================  ==============================================================================
+``algo``            ``ppo``, ``sac``, ``td3``, ``a2c`` (default: the file's name, ``ppo.yaml`` -> PPO)
+``action``          ``rate`` (the env's action: the pressure change) or ``setpoint`` (the agent commands a
+                    pressure, ``(u + 1)/2`` of ``p_max``, and a rate-limited regulator follows it:
+                    :func:`agents.policies.setpoint_to_rate`; the agent still observes the pressure only)
+``vec_env``         ``batched`` (the batched env, :mod:`pneunet_env.sb3`) or ``dummy`` (SB3's
+                    ``DummyVecEnv`` over ``gym.make``); ``batched`` falls back to ``dummy`` with a warning
+                    if :mod:`pneunet_env.sb3` is missing
+``env_kwargs``      keyword arguments of ``gym.make("PneuNetGrasp-v0", ...)`` (config keys)
+``seed``            the run's seed (training envs ``seed + i``, evaluation env ``seed + 10_000``)
+``eval_freq``       timesteps between evaluations (``EvalCallback``, ``is_success`` logged)
+``n_eval_episodes`` episodes per evaluation, on objects drawn with a fixed seed (the same each time)
+``n_eval_envs``     envs of the evaluation ``VecEnv``
+``checkpoint_freq`` timesteps between checkpoints (model and ``VecNormalize`` statistics)
+``max_train_minutes`` wall-clock budget of one invocation (training stops cleanly when it is spent)
+``torch_threads``   ``torch.set_num_threads`` (default 2: the CI machine has two cores)
+==================  ==============================================================================
+
+The run directory (``--run-dir``, default ``runs/<algo>``) receives ``config.yaml`` (the resolved
+hyperparameters), ``run.json`` (seeds, versions, timesteps, wall time, each invocation), ``monitor/``,
+``evaluations.npz`` (EvalCallback's log: rewards, lengths, successes), ``best_model.zip`` with
+``best_model_vecnormalize.pkl``, ``checkpoints/``, ``final_model.zip`` with ``final_model_vecnormalize.pkl``, and
+``training.png`` (success rate and return of each evaluation, with matplotlib).
+``--resume`` continues from the newest checkpoint (or ``--resume PATH.zip``) up to ``n_timesteps``.
+``--export models/ppo_pneunet`` copies the best model, its statistics and a metadata JSON there: the
+policy registry (:mod:`agents.policies`) then loads ``models/ppo_pneunet.zip`` by path.
+
+torch and stable-baselines3 are imported only here (``pip install -e ".[rl]"``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import ast
+import json
+import platform
+import re
+import shutil
+import time
+import warnings
+from pathlib import Path
+from typing import Any
+
+from .policies import ACTION_MODES, setpoint_to_rate
+
+ENV_ID = "PneuNetGrasp-v0"
+ALGOS = ("ppo", "sac", "td3", "a2c")
+OUR_KEYS = ("algo", "action", "vec_env", "env_kwargs", "seed", "eval_freq", "n_eval_episodes", "n_eval_envs",
+            "checkpoint_freq", "max_train_minutes", "torch_threads")
+ZOO_KEYS = ("policy", "n_envs", "n_timesteps", "normalize", "policy_kwargs")
+DEFAULTS: dict[str, Any] = {
+    "action": "rate", "vec_env": "batched", "env_kwargs": {}, "seed": 0, "eval_freq": 20_000, "n_eval_episodes": 100,
+    "n_eval_envs": 4, "checkpoint_freq": 50_000, "max_train_minutes": 10.0, "torch_threads": 2,
+    "policy": "MlpPolicy", "n_envs": 8, "n_timesteps": 300_000, "normalize": False, "policy_kwargs": {},
+}
+
+__all__ = ["load_train_config", "parse_literal", "train", "add_arguments", "run"]
+
+
+# ---------------------------------------------------------------------------------------------
+# Config
+# ---------------------------------------------------------------------------------------------
+
+
+def parse_literal(name: str, value: Any) -> Any:
+    """rl-zoo3's string values without ``eval``: ``"dict(a=1, b=[2])"``, ``"{'a': 1}"``, ``"nn.ReLU"``.
+
+    Mappings and other YAML values pass through. ``dict(...)`` may hold literals and ``nn.<Activation>``
+    names (kept as strings, resolved by :func:`_resolve_policy_kwargs`). ``ValueError`` names a bad one.
+    """
+    if not isinstance(value, str):
+        return value
+    text = value.strip()
+    try:
+        node = ast.parse(text, mode="eval").body
+    except SyntaxError:
+        raise ValueError(f"train config key {name!r}: cannot parse {value!r}") from None
+    return _literal(name, node, value)
+
+
+def _literal(name: str, node: ast.AST, source: str) -> Any:
+    if isinstance(node, ast.Call) and isinstance(node.func, ast.Name) and node.func.id == "dict" and not node.args:
+        return {kw.arg: _literal(name, kw.value, source) for kw in node.keywords}
+    if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) and node.value.id in ("nn", "th", "torch"):
+        return f"nn.{node.attr}"
+    if isinstance(node, ast.Dict):
+        return {_literal(name, k, source): _literal(name, v, source) for k, v in zip(node.keys, node.values,
+                                                                                      strict=True)}
+    if isinstance(node, (ast.List, ast.Tuple)):
+        items = [_literal(name, e, source) for e in node.elts]
+        return items if isinstance(node, ast.List) else tuple(items)
+    try:
+        return ast.literal_eval(node)
+    except ValueError:
+        raise ValueError(f"train config key {name!r}: {source!r} is not a literal (only dict(...), literals and "
+                         "nn.<Activation> are read)") from None
+
+
+def load_train_config(path: str | Path, env_id: str = ENV_ID) -> dict[str, Any]:
+    """Read an rl-zoo3-style YAML file: the hyperparameters of ``env_id``, with defaults filled in.
+
+    Raises:
+        ValueError: a missing file or env entry, an unknown algorithm, a non-positive count, or a malformed value.
+    """
+    import yaml
+
+    path = Path(path)
+    try:
+        data = yaml.safe_load(path.read_text())
+    except OSError as exc:
+        raise ValueError(f"cannot read train config {str(path)!r}: {exc}") from None
+    if not isinstance(data, dict) or env_id not in data or not isinstance(data[env_id], dict):
+        raise ValueError(f"train config {str(path)!r} must map {env_id!r} to its hyperparameters (rl-zoo3 style)")
+    hp = {**DEFAULTS, **data[env_id]}
+    algo = str(hp.get("algo") or path.stem.split("_")[0]).lower()
+    if algo not in ALGOS:
+        raise ValueError(f"train config {str(path)!r}: unknown algo {algo!r}; valid: {', '.join(ALGOS)}")
+    hp["algo"] = algo
+    hp["normalize"] = parse_literal("normalize", hp["normalize"])
+    if isinstance(hp["normalize"], bool):
+        hp["normalize"] = {"norm_obs": True, "norm_reward": True} if hp["normalize"] else False
+    elif not isinstance(hp["normalize"], dict):
+        raise ValueError(f"train config key 'normalize' must be true/false or a mapping, got {hp['normalize']!r}")
+    hp["policy_kwargs"] = parse_literal("policy_kwargs", hp["policy_kwargs"]) or {}
+    if not isinstance(hp["policy_kwargs"], dict):
+        raise ValueError(f"train config key 'policy_kwargs' must be a mapping, got {hp['policy_kwargs']!r}")
+    if hp["action"] not in ACTION_MODES:
+        raise ValueError(f"train config key 'action' must be one of {ACTION_MODES}, got {hp['action']!r}")
+    if hp["vec_env"] not in ("batched", "dummy"):
+        raise ValueError(f"train config key 'vec_env' must be 'batched' or 'dummy', got {hp['vec_env']!r}")
+    if not isinstance(hp["env_kwargs"], dict):
+        raise ValueError(f"train config key 'env_kwargs' must be a mapping, got {hp['env_kwargs']!r}")
+    for key in ("n_envs", "n_timesteps", "eval_freq", "n_eval_episodes", "n_eval_envs", "checkpoint_freq",
+                "torch_threads"):
+        hp[key] = _count(key, hp[key])
+    hp["max_train_minutes"] = float(hp["max_train_minutes"])
+    if not hp["max_train_minutes"] > 0:
+        raise ValueError(f"train config key 'max_train_minutes' must be > 0, got {hp['max_train_minutes']!r}")
+    return hp
+
+
+def _count(key: str, value: Any) -> int:
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"train config key {key!r} must be a positive integer, got {value!r}") from None
+    if x != int(x) or x < 1:
+        raise ValueError(f"train config key {key!r} must be a positive integer, got {value!r}")
+    return int(x)
+
+
+def _resolve_policy_kwargs(kwargs: dict[str, Any]) -> dict[str, Any]:
+    import torch.nn as nn
+
+    out = dict(kwargs)
+    for key, value in kwargs.items():
+        if isinstance(value, str) and value.startswith("nn."):
+            try:
+                out[key] = getattr(nn, value[3:])
+            except AttributeError:
+                raise ValueError(f"policy_kwargs {key!r}: torch.nn has no {value[3:]!r}") from None
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+# Environments
+# ---------------------------------------------------------------------------------------------
+
+
+def batched_available() -> bool:
+    """Whether :mod:`pneunet_env.sb3` (the SB3 adapter of the batched env) can be imported."""
+    try:
+        import pneunet_env.sb3  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+def _setpoint_wrapper(venv, step_fraction: float):
+    """``venv`` driven by pressure setpoints (``hp["action"] == "setpoint"``): a ``VecEnvWrapper``."""
+    import numpy as np
+    from stable_baselines3.common.vec_env import VecEnvWrapper
+
+    class SetpointVecEnv(VecEnvWrapper):
+        """The agent's action is a pressure setpoint; the env receives the rate-limited change toward it."""
+
+        def __init__(self, venv):
+            super().__init__(venv)
+            self._p = np.zeros((venv.num_envs, 1), np.float32)
+
+        def reset(self):
+            obs = self.venv.reset()
+            self._p = np.asarray(obs, np.float32)[:, :1].copy()
+            return obs
+
+        def step_async(self, actions):
+            self.venv.step_async(setpoint_to_rate(actions, self._p, step_fraction))
+
+        def step_wait(self):
+            obs, rewards, dones, infos = self.venv.step_wait()
+            self._p = np.asarray(obs, np.float32)[:, :1].copy()  # an ended episode's env is already reset
+            return obs, rewards, dones, infos
+
+    return SetpointVecEnv(venv)
+
+
+def make_vec_env(hp: dict[str, Any], n_envs: int, seed: int, monitor_dir: Path | None):
+    """The training or evaluation ``VecEnv`` (``hp["vec_env"]``), monitored, seeded, with the action mode."""
+    venv = _make_base_vec_env(hp, n_envs, seed, monitor_dir)
+    if hp["action"] == "setpoint":
+        from pneunet_env.config import load_config
+
+        cfg = load_config(None, **hp["env_kwargs"])
+        venv = _setpoint_wrapper(venv, cfg.max_pressure_step_kpa / cfg.max_pressure_kpa)
+    return venv
+
+
+def _make_base_vec_env(hp: dict[str, Any], n_envs: int, seed: int, monitor_dir: Path | None):
+    from stable_baselines3.common.env_util import make_vec_env as sb3_make_vec_env
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecMonitor
+
+    import pneunet_env  # noqa: F401  (registers the env)
+
+    kind = hp["vec_env"]
+    if kind == "batched" and not batched_available():
+        warnings.warn("vec_env: batched needs pneunet_env.sb3, which is missing; using dummy", stacklevel=2)
+        kind = "dummy"
+    if kind == "batched":
+        from pneunet_env.sb3 import SB3VecEnv
+
+        venv = SB3VecEnv(num_envs=n_envs, **hp["env_kwargs"])
+        if monitor_dir is not None:
+            monitor_dir.mkdir(parents=True, exist_ok=True)
+        venv = VecMonitor(venv, filename=None if monitor_dir is None else str(monitor_dir / "batched"))
+        venv.seed(seed)
+        return venv
+    if monitor_dir is not None:
+        monitor_dir.mkdir(parents=True, exist_ok=True)
+    return sb3_make_vec_env(ENV_ID, n_envs=n_envs, seed=seed, vec_env_cls=DummyVecEnv,
+                            env_kwargs=dict(hp["env_kwargs"]),
+                            monitor_dir=None if monitor_dir is None else str(monitor_dir))
+
+
+# ---------------------------------------------------------------------------------------------
+# Callbacks
+# ---------------------------------------------------------------------------------------------
+
+
+def _callbacks(hp, run_dir: Path, eval_env, seed: int, deadline: float, resuming: bool = False):
+    from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback, EvalCallback
+
+    class SaveVecNormalize(BaseCallback):
+        """On a new best model: save the VecNormalize statistics next to it."""
+
+        def _on_step(self) -> bool:
+            vn = self.model.get_vec_normalize_env()
+            if vn is not None:
+                vn.save(str(run_dir / "best_model_vecnormalize.pkl"))
+            return True
+
+    class SeededEval(EvalCallback):
+        """EvalCallback on the same objects every time (the eval env is re-seeded before each evaluation).
+
+        On a resumed run it starts from the earlier evaluations (``evaluations.npz`` keeps them all, and a new best
+        model must beat the earlier best)."""
+
+        def _init_callback(self) -> None:
+            super()._init_callback()
+            previous = run_dir / "evaluations.npz"
+            if resuming and previous.is_file():
+                import numpy as np
+
+                data = np.load(previous)
+                self.evaluations_timesteps = [int(t) for t in data["timesteps"]]
+                self.evaluations_results = [list(r) for r in data["results"]]
+                self.evaluations_length = [list(r) for r in data["ep_lengths"]]
+                if "successes" in data:
+                    self.evaluations_successes = [list(r) for r in data["successes"]]
+                if len(self.evaluations_results):
+                    self.best_mean_reward = float(max(np.mean(r) for r in self.evaluations_results))
+
+        def _on_step(self) -> bool:
+            if self.eval_freq > 0 and self.n_calls % self.eval_freq == 0:
+                self.eval_env.seed(seed)
+            return super()._on_step()
+
+    class WallClock(BaseCallback):
+        """Stop training once the invocation's time budget is spent."""
+
+        def _on_step(self) -> bool:
+            if time.monotonic() > deadline:
+                if self.verbose:
+                    print(f"\ntime budget of {hp['max_train_minutes']:g} min spent at {self.num_timesteps} steps")
+                return False
+            return True
+
+    n = hp["n_envs"]
+    evaluation = SeededEval(eval_env, callback_on_new_best=SaveVecNormalize(),
+                            n_eval_episodes=hp["n_eval_episodes"], eval_freq=max(1, hp["eval_freq"] // n),
+                            log_path=str(run_dir), best_model_save_path=str(run_dir), deterministic=True,
+                            verbose=1)
+    checkpoints = CheckpointCallback(max(1, hp["checkpoint_freq"] // n), str(run_dir / "checkpoints"),
+                                     name_prefix="model", save_vecnormalize=True)
+    return [evaluation, checkpoints, WallClock(verbose=1)]
+
+
+# ---------------------------------------------------------------------------------------------
+# Training
+# ---------------------------------------------------------------------------------------------
+
+
+_CKPT = re.compile(r"model_(\d+)_steps\.zip$")
+
+
+def latest_checkpoint(run_dir: Path) -> Path | None:
+    """The checkpoint with the most timesteps in ``run_dir/checkpoints`` (``None`` if there is none)."""
+    found = [(int(m.group(1)), p) for p in (run_dir / "checkpoints").glob("model_*_steps.zip")
+             if (m := _CKPT.search(p.name))]
+    return max(found)[1] if found else None
+
+
+def _checkpoint_stats(ckpt: Path) -> Path | None:
+    m = _CKPT.search(ckpt.name)
+    cand = ckpt.with_name(f"model_vecnormalize_{m.group(1)}_steps.pkl") if m else None
+    if cand is not None and cand.is_file():
+        return cand
+    alt = ckpt.with_name(ckpt.stem + "_vecnormalize.pkl")
+    return alt if alt.is_file() else None
+
+
+def _versions() -> dict[str, str]:
+    import gymnasium
+    import numpy
+    import stable_baselines3
+    import torch
+
+    import pneunet_env
+
+    return {"python": platform.python_version(), "pneunet_env": pneunet_env.__version__,
+            "stable_baselines3": stable_baselines3.__version__, "torch": torch.__version__,
+            "gymnasium": gymnasium.__version__, "numpy": numpy.__version__}
+
+
+def train(hp: dict[str, Any], run_dir: Path, resume: Path | None = None, progress: bool = True,
+          config_path: str | None = None) -> dict[str, Any]:
+    """Train (or resume) one run; returns the run record written to ``run_dir/run.json``."""
+    import numpy as np
+    import stable_baselines3 as sb3
+    import torch
+    import yaml
+    from stable_baselines3.common.utils import set_random_seed
+    from stable_baselines3.common.vec_env import VecNormalize
+
+    t0 = time.monotonic()
+    deadline = t0 + 60.0 * hp["max_train_minutes"]
+    torch.set_num_threads(hp["torch_threads"])
+    run_dir.mkdir(parents=True, exist_ok=True)
+    seed = hp["seed"]
+    set_random_seed(seed)
+    algo_cls = getattr(sb3, hp["algo"].upper())
+    venv = make_vec_env(hp, hp["n_envs"], seed, run_dir / "monitor")
+    eval_env = make_vec_env(hp, hp["n_eval_envs"], seed + 10_000, None)
+    norm = hp["normalize"]
+    stats = None
+    if resume is not None:
+        stats = _checkpoint_stats(resume)
+    if norm:
+        if stats is not None:
+            venv = VecNormalize.load(str(stats), venv)
+            venv.training = True
+        else:
+            venv = VecNormalize(venv, gamma=float(hp.get("gamma", 0.99)), **norm)
+        eval_env = VecNormalize(eval_env, training=False, norm_obs=norm.get("norm_obs", True), norm_reward=False)
+    zoo_and_ours = set(OUR_KEYS) | set(ZOO_KEYS)
+    algo_kwargs = {k: v for k, v in hp.items() if k not in zoo_and_ours}
+    if resume is not None:
+        model = algo_cls.load(str(resume), env=venv, device="cpu")
+        done = int(model.num_timesteps)
+    else:
+        model = algo_cls(hp["policy"], venv, seed=seed, device="cpu", verbose=0,
+                         policy_kwargs=_resolve_policy_kwargs(hp["policy_kwargs"]), **algo_kwargs)
+        done = 0
+    remaining = max(0, hp["n_timesteps"] - done)
+    (run_dir / "config.yaml").write_text(yaml.safe_dump({ENV_ID: hp}, sort_keys=False))
+    record_path = run_dir / "run.json"
+    record = json.loads(record_path.read_text()) if (resume is not None and record_path.is_file()) else {}
+    record.setdefault("invocations", [])
+    record.update(algo=hp["algo"], env_id=ENV_ID, seed=seed, seeds={"train_envs": f"{seed} + i",
+                  "eval_env": seed + 10_000, "torch_numpy_random": seed}, config_path=config_path,
+                  hyperparameters=hp, versions=_versions(), vec_env=type(venv.unwrapped if hasattr(venv, "unwrapped")
+                                                                          else venv).__name__)
+    if remaining > 0:
+        callbacks = _callbacks(hp, run_dir, eval_env, seed + 10_000, deadline, resuming=resume is not None)
+        model.learn(total_timesteps=remaining, callback=callbacks, progress_bar=progress,
+                    reset_num_timesteps=resume is None)
+    model.save(str(run_dir / "final_model.zip"))
+    vn = model.get_vec_normalize_env()
+    if vn is not None:
+        vn.save(str(run_dir / "final_model_vecnormalize.pkl"))
+    wall = time.monotonic() - t0
+    evals = run_dir / "evaluations.npz"
+    best = {}
+    if evals.is_file():
+        data = np.load(evals)
+        if len(data["timesteps"]):
+            i = int(np.argmax(data["results"].mean(axis=1)))
+            best = {"timesteps": int(data["timesteps"][i]), "mean_reward": float(data["results"][i].mean())}
+            if "successes" in data and len(data["successes"]):
+                best["success_rate"] = float(np.mean(data["successes"][i]))
+    record["invocations"].append({"resumed_from": None if resume is None else str(resume), "start_timesteps": done,
+                                  "end_timesteps": int(model.num_timesteps), "wall_s": round(wall, 1),
+                                  "time_budget_min": hp["max_train_minutes"],
+                                  "finished": int(model.num_timesteps) >= hp["n_timesteps"]})
+    ref = reference_success(hp, seed + 10_000)
+    record.update(timesteps=int(model.num_timesteps), best_eval=best,
+                  best_ramp_eval_success_rate=ref,
+                  total_wall_s=round(sum(i["wall_s"] for i in record["invocations"]), 1))
+    record_path.write_text(json.dumps(record, indent=1, default=str) + "\n")
+    venv.close()
+    eval_env.close()
+    plot_training(run_dir, reference=ref, reference_label="best-ramp on the same objects")
+    return record
+
+
+def reference_success(hp: dict[str, Any], seed: int, spec: str = "best-ramp") -> float | None:
+    """The success rate of a scripted policy (``best-ramp``) on the evaluation objects of the run.
+
+    The same vec env, seeds and episode split as :class:`EvalCallback`'s evaluations (the eval env's objects are
+    drawn from per-env streams, the same whatever the episodes' lengths), so the numbers compare directly.
+    """
+    import numpy as np
+    from stable_baselines3.common.evaluation import evaluate_policy
+
+    from pneunet_env.config import load_config
+
+    from .policies import make_policy
+
+    try:
+        policy = make_policy(spec, load_config(None, **hp["env_kwargs"])).policy
+    except ValueError:
+        return None
+    venv = make_vec_env({**hp, "action": "rate"}, hp["n_eval_envs"], seed, None)
+    venv.seed(seed)
+    successes: list[bool] = []
+
+    def log(locals_, globals_):
+        if locals_["done"]:
+            successes.append(bool(locals_["info"].get("is_success", False)))
+
+    evaluate_policy(policy, venv, n_eval_episodes=hp["n_eval_episodes"], deterministic=True, callback=log)
+    venv.close()
+    return float(np.mean(successes)) if successes else None
+
+
+def plot_training(run_dir: Path, path: Path | None = None, reference: float | None = None,
+                  reference_label: str = "best-ramp") -> Path | None:
+    """Evaluation success rate and mean return vs timesteps (``run_dir/evaluations.npz``) -> ``run_dir/training.png``.
+
+    ``reference``: a success rate to draw as a horizontal line (e.g. best-ramp's on the same evaluation objects).
+    Returns ``None`` when there is nothing to plot or matplotlib is missing.
+    """
+    import numpy as np
+
+    evals = run_dir / "evaluations.npz"
+    if not evals.is_file():
+        return None
+    try:
+        from .evaluate import _matplotlib
+
+        plt = _matplotlib()
+    except ImportError:
+        return None
+    data = np.load(evals)
+    t = data["timesteps"]
+    if not len(t):
+        return None
+    fig, (ax, ax2) = plt.subplots(2, 1, figsize=(7, 4.6), sharex=True)
+    if "successes" in data and len(data["successes"]):
+        ax.plot(t, data["successes"].mean(axis=1), "o-", ms=3, color="#2ca02c", label="agent (deterministic)")
+    if reference is not None:
+        ax.axhline(reference, color="#1f5fbf", ls="--", lw=1.3, label=reference_label)
+    best = int(np.argmax(data["results"].mean(axis=1)))
+    ax.axvline(t[best], color="grey", ls=":", lw=1)
+    ax.set_ylabel("success rate")
+    vals = list(data["successes"].mean(axis=1)) if "successes" in data and len(data["successes"]) else []
+    vals += [] if reference is None else [reference]
+    if vals:
+        ax.set_ylim(max(-0.02, min(vals) - 0.1), min(1.02, max(vals) + 0.1))
+    ax.legend(fontsize=8)
+    ax.grid(True, alpha=0.3)
+    ax2.plot(t, data["results"].mean(axis=1), "o-", ms=3, color="black")
+    ax2.axvline(t[best], color="grey", ls=":", lw=1, label="best model (saved)")
+    ax2.set_ylabel("mean return")
+    ax2.set_xlabel("timesteps")
+    ax2.legend(fontsize=8)
+    ax2.grid(True, alpha=0.3)
+    n_eval = data["results"].shape[1]
+    fig.suptitle(f"evaluation during training ({n_eval} episodes each, the same objects every time)", fontsize=9)
+    fig.tight_layout()
+    path = run_dir / "training.png" if path is None else path
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
+def export(run_dir: Path, dest: Path, record: dict[str, Any]) -> Path:
+    """Copy the best model (else the final one), its statistics and a metadata JSON to ``dest.{zip,json}``."""
+    src = run_dir / "best_model.zip"
+    stats = run_dir / "best_model_vecnormalize.pkl"
+    model_timesteps = record["best_eval"].get("timesteps")
+    if not src.is_file():
+        src, stats = run_dir / "final_model.zip", run_dir / "final_model_vecnormalize.pkl"
+        model_timesteps = record["timesteps"]
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    zip_path = dest.with_suffix(".zip")
+    shutil.copyfile(src, zip_path)
+    stats_dest = dest.with_name(dest.name + "_vecnormalize.pkl")
+    if stats.is_file():
+        shutil.copyfile(stats, stats_dest)
+    elif stats_dest.exists():
+        stats_dest.unlink()
+    meta = {"algo": record["algo"], "action": record["hyperparameters"]["action"], "env_id": record["env_id"],
+            "source": str(src), "seed": record["seed"], "model_timesteps": model_timesteps,
+            "timesteps": record["timesteps"], "total_wall_s": record["total_wall_s"], "best_eval": record["best_eval"],
+            "best_ramp_eval_success_rate": record.get("best_ramp_eval_success_rate"),
+            "hyperparameters": record["hyperparameters"], "versions": record["versions"],
+            "reproduce": record.get("command")}
+    dest.with_suffix(".json").write_text(json.dumps(meta, indent=1, default=str) + "\n")
+    return zip_path
+
+
+# ---------------------------------------------------------------------------------------------
+# Command line
+# ---------------------------------------------------------------------------------------------
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--config", required=True, help="rl-zoo3-style YAML (configs/train/ppo.yaml, sac.yaml)")
+    parser.add_argument("--run-dir", type=Path, default=None, help="output directory (default runs/<algo>)")
+    parser.add_argument("--resume", nargs="?", const="latest", default=None, metavar="CHECKPOINT",
+                        help="resume from CHECKPOINT.zip, or (no value) from the newest checkpoint of --run-dir")
+    parser.add_argument("--timesteps", type=float, default=None, help="override n_timesteps")
+    parser.add_argument("--n-envs", type=int, default=None, help="override n_envs")
+    parser.add_argument("--seed", type=int, default=None, help="override seed")
+    parser.add_argument("--eval-freq", type=float, default=None, help="override eval_freq (timesteps)")
+    parser.add_argument("--n-eval-episodes", type=int, default=None, help="override n_eval_episodes")
+    parser.add_argument("--checkpoint-freq", type=float, default=None, help="override checkpoint_freq (timesteps)")
+    parser.add_argument("--max-minutes", type=float, default=None, help="override max_train_minutes")
+    parser.add_argument("--vec-env", choices=("batched", "dummy"), default=None, help="override vec_env")
+    parser.add_argument("--export", type=Path, default=None, metavar="PATH_STEM",
+                        help="copy the best model to PATH_STEM.zip (+ _vecnormalize.pkl, .json), "
+                             "e.g. models/ppo_pneunet")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def _command(args: argparse.Namespace, run_dir: Path) -> str:
+    """The command line of this invocation (recorded in run.json and the exported model's JSON)."""
+    parts = ["pneunet-grasp train", f"--config {args.config}", f"--run-dir {run_dir}"]
+    for flag, value in (("--timesteps", args.timesteps), ("--n-envs", args.n_envs), ("--seed", args.seed),
+                        ("--eval-freq", args.eval_freq), ("--n-eval-episodes", args.n_eval_episodes),
+                        ("--checkpoint-freq", args.checkpoint_freq), ("--max-minutes", args.max_minutes),
+                        ("--vec-env", args.vec_env), ("--export", args.export)):
+        if value is not None:
+            parts.append(f"{flag} {value:g}" if isinstance(value, float) else f"{flag} {value}")
+    if args.resume is not None:
+        parts.append("--resume" if args.resume == "latest" else f"--resume {args.resume}")
+    return " ".join(parts)
+
+
+def run(args: argparse.Namespace) -> int:
+    try:
+        hp = load_train_config(args.config)
+        for key, value in (("n_timesteps", args.timesteps), ("n_envs", args.n_envs), ("seed", args.seed),
+                           ("eval_freq", args.eval_freq), ("n_eval_episodes", args.n_eval_episodes),
+                           ("checkpoint_freq", args.checkpoint_freq)):
+            if value is not None:
+                hp[key] = _count(key, value) if key != "seed" else int(value)
+        if args.max_minutes is not None:
+            if not args.max_minutes > 0:
+                raise ValueError(f"--max-minutes must be > 0, got {args.max_minutes}")
+            hp["max_train_minutes"] = float(args.max_minutes)
+        if args.vec_env is not None:
+            hp["vec_env"] = args.vec_env
+    except ValueError as exc:
+        raise SystemExit(f"pneunet-grasp train: {exc}") from None
+    run_dir = args.run_dir or Path("runs") / hp["algo"]
+    resume = None
+    if args.resume is not None:
+        resume = latest_checkpoint(run_dir) if args.resume == "latest" else Path(args.resume)
+        if resume is None or not resume.is_file():
+            raise SystemExit(f"pneunet-grasp train: no checkpoint to resume from ({args.resume} in {run_dir})")
+    print(f"training {hp['algo'].upper()} on {ENV_ID} ({hp['vec_env']} vec env, {hp['n_envs']} envs) for "
+          f"{hp['n_timesteps']} timesteps, at most {hp['max_train_minutes']:g} min; seed {hp['seed']}; -> {run_dir}"
+          + (f"; resuming from {resume}" if resume else ""))
+    record = train(hp, run_dir, resume, progress=not args.no_progress, config_path=str(args.config))
+    record["command"] = _command(args, run_dir)
+    (run_dir / "run.json").write_text(json.dumps(record, indent=1, default=str) + "\n")
+    inv = record["invocations"][-1]
+    print(f"{inv['end_timesteps']} timesteps ({inv['end_timesteps'] - inv['start_timesteps']} this run) in "
+          f"{inv['wall_s']:.0f} s; best evaluation: {record['best_eval']}")
+    if args.export is not None:
+        path = export(run_dir, args.export, record)
+        print(f"exported the best model to {path}")
+    return 0
