@@ -56,7 +56,7 @@ solver's entries those of an exact kinematic answer (``solver_status = "kinemati
 from __future__ import annotations
 
 import math
-from typing import Any, NamedTuple
+from typing import Any
 
 import gymnasium as gym
 import numpy as np
@@ -68,26 +68,6 @@ from pneunet_env.config import EnvConfig, load_config
 __all__ = ["RigidGraspEnv", "ENV_ID", "jaw_indentation", "default_jaw_travel_mm"]
 
 ENV_ID = "RigidGrasp-v0"
-
-
-class _Contact(NamedTuple):
-    """What :func:`pneunet_env.task.build_info` reads of an equilibrium (a kinematic one here)."""
-
-    pressure: float
-    curvature: float
-    side_strain: float
-    top_strain: float
-    contact_force: float
-    indentation: float
-    in_contact: bool
-    volume_change: float
-    converged: bool = True
-    iterations: int = 0
-    substeps: int = 0
-    snapped: bool = False
-    gradient_norm: float = 0.0
-    min_eigenvalue: float = math.inf
-    status: str = "kinematic"
 
 
 def default_jaw_travel_mm(config: EnvConfig) -> float:
@@ -157,13 +137,14 @@ class RigidGraspEnv(gym.Env):
         """The current episode's :class:`pneunet_env.objects.GraspObject` (``None`` before ``reset``)."""
         return self._obj
 
-    def _contact(self) -> _Contact:
+    def _contact(self) -> task.SolvedState:
+        """The kinematic contact, as the task's :class:`~pneunet_env.task.SolvedState` (nothing to solve)."""
         obj, w = self._obj, self.config.width_mm
         delta_mm = float(jaw_indentation(self._closure, obj.curvature_per_m, self._nominal))
         in_contact = delta_mm > 0.0 and obj.stiffness > 0.0
         delta = delta_mm / w if in_contact else 0.0
         r_jaw_mm = 1e3 / self._nominal - self._closure
-        return _Contact(
+        return task.SolvedState(
             pressure=0.0,
             curvature=w / r_jaw_mm,
             side_strain=0.0,
@@ -172,12 +153,20 @@ class RigidGraspEnv(gym.Env):
             indentation=delta,
             in_contact=in_contact,
             volume_change=0.0,
+            energy=0.0,
+            gradient_norm=0.0,
+            min_eigenvalue=math.inf,
+            converged=True,
+            iterations=0,
+            substeps=0,
+            snapped=False,
+            status="kinematic",
         )
 
     def _obs(self) -> np.ndarray:
         return np.array([self._closure / self.jaw_travel_mm], dtype=np.float32)
 
-    def _info(self, contact: _Contact, outcome=None, clipped=False) -> dict[str, Any]:
+    def _info(self, contact: task.SolvedState, outcome=None, clipped=False) -> dict[str, Any]:
         info = task.build_info(contact, contact, self._obj, self._thresholds, self._state, self._task, outcome,
                                bool(clipped), False)
         info.update(jaw_closure_mm=self._closure, jaw_travel_mm=self.jaw_travel_mm, gripper="rigid")

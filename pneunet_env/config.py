@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import Any
 
 from .models import MODELS
-from .params import ActuatorParams
+from .params import ActuatorParams, check_finite
 from .solver import SolverOptions
 from .units import PhysicalActuator, Scales
 
@@ -265,13 +265,7 @@ class EnvConfig:
 def _float(name: str, value: Any) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)) and not hasattr(value, "__float__"):
         raise ValueError(f"config key {name!r} must be a number, got {value!r}")
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"config key {name!r} must be a number, got {value!r}") from None
-    if not math.isfinite(x):
-        raise ValueError(f"config key {name!r} must be finite, got {value!r}")
-    return x
+    return check_finite(f"config key {name!r}", value)
 
 
 def _int(name: str, value: Any, minimum: int) -> int:
