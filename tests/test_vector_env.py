@@ -327,7 +327,11 @@ def test_equilibrium_of_a_sub_env_is_the_single_envs():
         single.step(np.ones(1, np.float32))
     a, b = env.equilibrium(1), single.unwrapped.equilibrium
     for f in a.__dataclass_fields__:
-        assert getattr(a, f) == pytest.approx(getattr(b, f), rel=RTOL, abs=ATOL), f
+        va, vb = getattr(a, f), getattr(b, f)
+        if isinstance(vb, str):  # the solver's status message
+            assert va == vb, f
+        else:
+            assert va == pytest.approx(vb, rel=RTOL, abs=ATOL), f
     assert 0 < env.state_nbytes() / env.num_envs <= 1024
 
 
