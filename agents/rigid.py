@@ -64,6 +64,7 @@ from gymnasium import spaces
 
 from pneunet_env import task
 from pneunet_env.config import EnvConfig, load_config
+from pneunet_env.params import check_positive
 
 __all__ = ["RigidGraspEnv", "ENV_ID", "jaw_indentation", "default_jaw_travel_mm"]
 
@@ -109,13 +110,15 @@ class RigidGraspEnv(gym.Env):
         cfg = self.config
         self._nominal = _nominal_curvature_per_m(cfg)
         radius_mm = 1e3 / self._nominal
-        travel = default_jaw_travel_mm(cfg) if jaw_travel_mm is None else _positive("jaw_travel_mm", jaw_travel_mm)
+        travel = (
+            default_jaw_travel_mm(cfg) if jaw_travel_mm is None else check_positive("jaw_travel_mm", jaw_travel_mm)
+        )
         if travel >= radius_mm:
             raise ValueError(
                 f"jaw_travel_mm = {travel!r} reaches the centre of the nominal object (radius {radius_mm:g} mm)"
             )
         step = travel * cfg.max_pressure_step_kpa / cfg.max_pressure_kpa if jaw_step_mm is None else jaw_step_mm
-        step = _positive("jaw_step_mm", step)
+        step = check_positive("jaw_step_mm", step)
         if step > travel:
             raise ValueError(f"jaw_step_mm = {step!r} exceeds jaw_travel_mm = {travel!r}")
         self.jaw_travel_mm = float(travel)
@@ -186,13 +189,8 @@ class RigidGraspEnv(gym.Env):
     def step(self, action):
         if not self._started:
             raise RuntimeError("call reset() before step()")
-        try:
-            a = np.asarray(action, dtype=np.float64)
-        except (TypeError, ValueError):
-            raise ValueError(f"action must be a real number (shape (1,)), got {action!r}") from None
-        if a.size != 1:
-            raise ValueError(f"action must hold one number (shape (1,)), got shape {a.shape}: {action!r}")
-        self._closure, clipped = task.update_pressure(self._closure, a.item(), self._jaw_task)  # raises on NaN
+        a = task.single_action(action)
+        self._closure, clipped = task.update_pressure(self._closure, a, self._jaw_task)  # raises on NaN
         c = self._contact()
         out = task.transition(self._state, c.contact_force, c.indentation, c.in_contact, self._thresholds, False,
                               self._task)
@@ -202,16 +200,6 @@ class RigidGraspEnv(gym.Env):
         if terminated or truncated:
             info["is_success"] = bool(out.success)
         return self._obs(), float(out.reward), terminated, truncated, info
-
-
-def _positive(name: str, value: Any) -> float:
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a number, got {value!r}") from None
-    if not math.isfinite(x) or x <= 0.0:
-        raise ValueError(f"{name} must be finite and > 0, got {value!r}")
-    return x
 
 
 if ENV_ID not in gym.registry:

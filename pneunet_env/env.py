@@ -233,16 +233,7 @@ class PneuNetGraspEnv(gym.Env):
     def step(self, action):
         if self._eq is None:
             raise RuntimeError("call reset() before step()")
-        if type(action) is np.ndarray and action.shape == (1,) and action.dtype.kind == "f":
-            a = float(action[0])  # the common case (an action_space sample, a policy's output), exactly
-        else:
-            try:
-                arr = np.asarray(action, dtype=np.float64)
-            except (TypeError, ValueError):
-                raise ValueError(f"action must be a real number (shape (1,)), got {action!r}") from None
-            if arr.size != 1:
-                raise ValueError(f"action must hold one number (shape (1,)), got shape {arr.shape}: {action!r}")
-            a = arr.item()
+        a = task.single_action(action)
         prev = self._eq
         pressure, clipped = task.update_pressure(prev.pressure, a, self._task)  # raises on NaN/inf
         obj = self._obj

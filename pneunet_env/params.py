@@ -11,7 +11,7 @@ import dataclasses
 import math
 from dataclasses import dataclass
 
-__all__ = ["ActuatorParams", "check_finite", "check_object"]
+__all__ = ["ActuatorParams", "check_finite", "check_object", "check_positive"]
 
 
 def check_finite(name: str, value: float) -> float:
@@ -22,6 +22,14 @@ def check_finite(name: str, value: float) -> float:
         raise ValueError(f"{name} must be a real number, got {value!r}") from None
     if not math.isfinite(x):
         raise ValueError(f"{name} must be finite, got {value!r}")
+    return x
+
+
+def check_positive(name: str, value: float) -> float:
+    """Return ``float(value)``; raise ``ValueError`` naming ``name`` unless it is finite and ``> 0``."""
+    x = check_finite(name, value)
+    if x <= 0.0:
+        raise ValueError(f"{name} must be > 0, got {value!r}")
     return x
 
 

@@ -64,6 +64,7 @@ __all__ = [
     "object_info",
     "object_thresholds",
     "check_action",
+    "single_action",
     "update_pressure",
     "initial_state",
     "transition",
@@ -332,6 +333,23 @@ def check_action(action):
     if not np.isfinite(a).all():
         raise ValueError(f"action must be finite (no NaN or inf), got {action!r}")
     return a
+
+
+def single_action(action) -> float:
+    """A single env's action (shape ``(1,)``, or any one-number array-like) as a Python float.
+
+    ``ValueError`` naming it if it is not one real number. (NaN and inf are caught by
+    :func:`update_pressure`.) The common case, a float array of shape ``(1,)``, is read directly.
+    """
+    if type(action) is np.ndarray and action.shape == (1,) and action.dtype.kind == "f":
+        return float(action[0])
+    try:
+        arr = np.asarray(action, dtype=np.float64)
+    except (TypeError, ValueError):
+        raise ValueError(f"action must be a real number (shape (1,)), got {action!r}") from None
+    if arr.size != 1:
+        raise ValueError(f"action must hold one number (shape (1,)), got shape {arr.shape}: {action!r}")
+    return arr.item()
 
 
 def update_pressure(pressure, action, params: TaskParams):

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from .params import ActuatorParams, check_finite
+from .params import ActuatorParams, check_finite, check_positive
 
 __all__ = [
     "PAPER_MODULUS_PER_STIFFNESS_PA",
@@ -29,13 +29,6 @@ __all__ = [
 ]
 
 
-def _positive(name: str, value: float) -> float:
-    v = check_finite(name, value)
-    if v <= 0.0:
-        raise ValueError(f"{name} must be > 0, got {value!r}")
-    return v
-
-
 @dataclass(frozen=True)
 class Scales:
     """The two scales of the dimensionless model: chamber width ``w`` (mm) and shear modulus ``mu`` (kPa)."""
@@ -44,8 +37,8 @@ class Scales:
     shear_modulus_kpa: float = 50.0
 
     def __post_init__(self) -> None:
-        _positive("width_mm", self.width_mm)
-        _positive("shear_modulus_kpa", self.shear_modulus_kpa)
+        check_positive("width_mm", self.width_mm)
+        check_positive("shear_modulus_kpa", self.shear_modulus_kpa)
 
     # lengths
     def length_to_mm(self, length: float) -> float:
@@ -95,8 +88,8 @@ def object_stiffness_from_material(
     mu_obj = check_finite("shear_modulus_kpa", shear_modulus_kpa)
     if mu_obj < 0.0:
         raise ValueError(f"shear_modulus_kpa (object) must be >= 0, got {shear_modulus_kpa!r}")
-    H = _positive("thickness_mm", thickness_mm) * 1e-3
-    kap = _positive("curvature_per_m", curvature_per_m)
+    H = check_positive("thickness_mm", thickness_mm) * 1e-3
+    kap = check_positive("curvature_per_m", curvature_per_m)
     if H * kap >= 1.0:
         raise ValueError(
             f"object thickness H={thickness_mm!r} mm is not below its outer radius 1/kappa_obj="
@@ -134,7 +127,7 @@ class PhysicalActuator:
 
     def __post_init__(self) -> None:
         for name in ("width_mm", "height_mm", "depth_mm", "shear_modulus_kpa"):
-            _positive(name, getattr(self, name))
+            check_positive(name, getattr(self, name))
         for name in ("base_thickness_mm", "side_thickness_mm", "top_thickness_mm", "base_modulus_kpa"):
             check_finite(name, getattr(self, name))
 

@@ -93,3 +93,12 @@ def test_scales_convert_both_ways():
     assert math.isclose(sc.energy_to_mj(1.0, 5.0), 50.0 * 5.0 * 25.0 * 1e-3)
     with pytest.raises(ValueError, match="width_mm"):
         Scales(width_mm=0.0)
+
+
+@pytest.mark.parametrize("value", [0.0, -1.0, float("nan"), float("inf"), "x"])
+def test_check_positive_names_the_bad_value(value):
+    from pneunet_env.params import check_positive
+
+    with pytest.raises(ValueError, match="jaw_step_mm"):
+        check_positive("jaw_step_mm", value)
+    assert check_positive("jaw_step_mm", 2) == 2.0
