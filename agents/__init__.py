@@ -4,6 +4,6 @@
 Importing this package needs neither torch nor stable-baselines3.
 """
 
-from .scripted import LinearRamp, StepPolicy
+from agents.scripted import LinearRamp, StepPolicy
 
 __all__ = ["LinearRamp", "StepPolicy"]

@@ -49,7 +49,7 @@ STIFF_MIN = 1e-3
 """The paper's stiff regime: ``k~ >= 1e-3`` (a 15 kPa elastomer)."""
 
 DEFAULT_POLICIES = ("best-ramp", "oracle", "rigid")
-DEFAULT_MODEL = Path(__file__).resolve().parents[1] / "models" / "ppo_pneunet.zip"
+DEFAULT_MODEL = Path(__file__).resolve().parent / "models" / "ppo_pneunet.zip"
 
 
 # ---------------------------------------------------------------------------------------------
@@ -305,9 +305,8 @@ def _matplotlib():
 
 def plot_success(rows, path: str | Path, config: EnvConfig, title: str | None = None) -> Path:
     """Success (top) and damage / slip (bottom) vs ``k~`` for every policy; soft and stiff regimes shaded."""
+    from agents.oracle import feasible_stiffness
     from pneunet_env.objects import stiffness_per_modulus
-
-    from .oracle import feasible_stiffness
 
     plt = _matplotlib()
     ks = np.array([r["object_stiffness"] for r in rows])
@@ -439,7 +438,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--policy", action="append", default=None, metavar="NAME_OR_MODEL_PATH",
                         help="a policy (repeatable): ramp, step, best-ramp, oracle, rigid (optionally "
                              "NAME:key=value,...), or an SB3 model .zip. Default: best-ramp, oracle, rigid, and "
-                             "models/ppo_pneunet.zip if present")
+                             "agents/models/ppo_pneunet.zip if present")
     parser.add_argument("--stiffness-grid", type=int, default=25, help="log-spaced k~ values (default 25)")
     parser.add_argument("--episodes", type=int, default=2, help="episodes per policy and k~ (default 2)")
     parser.add_argument("--out", type=Path, default=Path("evaluation"), help="output directory (default ./evaluation)")
@@ -459,7 +458,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from .policies import make_policy
+    from agents.policies import make_policy
 
     try:
         config = load_config(args.config, **parse_overrides(args.overrides))
@@ -497,7 +496,7 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
     (out / "evaluation.json").write_text(json.dumps(rows, indent=1) + "\n")
-    from .oracle import feasible_stiffness
+    from agents.oracle import feasible_stiffness
 
     summary = {
         "policies": {e.name: {"label": e.label, "env_id": e.env_id, "blind": e.blind} for e in entries},

@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 
 from pneunet_env.config import EnvConfig
-from pneunet_env.solver import load_path
+from pneunet_env.physics.solver import load_path
 
 __all__ = ["Oracle", "OraclePlan", "plan_target", "feasible_stiffness"]
 

@@ -35,9 +35,8 @@ from typing import Any
 
 import numpy as np
 
+from agents.scripted import LinearRamp, StepPolicy, load_ramp
 from pneunet_env.config import EnvConfig
-
-from .scripted import LinearRamp, StepPolicy, load_ramp
 
 __all__ = ["PolicyEntry", "REGISTRY", "make_policy", "parse_spec", "SB3Policy", "BEST_RAMP_PATH", "BEST_RIGID_PATH",
            "vecnormalize_path", "setpoint_to_rate", "ACTION_MODES"]
@@ -79,9 +78,6 @@ class PolicyEntry:
         import gymnasium as gym
 
         import pneunet_env  # noqa: F401  (registers PneuNetGrasp-v0)
-
-        if self.env_id == RIGID_ENV:
-            from . import rigid  # noqa: F401  (registers RigidGrasp-v0)
         return gym.make(self.env_id, config=config, **self.env_kwargs)
 
 
@@ -159,7 +155,7 @@ def _describe(pol, full_scale: float, unit: str) -> str:
 
 
 def _oracle(spec, params, config):
-    from .oracle import Oracle
+    from agents.oracle import Oracle
 
     res = _float(spec, "resolution_kpa", params.pop("resolution_kpa", "0.5"))
     _check_empty(spec, params, "resolution_kpa")
@@ -167,7 +163,7 @@ def _oracle(spec, params, config):
 
 
 def _rigid(spec, params, config):
-    from .rigid import default_jaw_travel_mm
+    from pneunet_env.envs.rigid import default_jaw_travel_mm
 
     travel = _float(spec, "travel_mm", params.pop("travel_mm")) if "travel_mm" in params else None
     env_kwargs = {} if travel is None else {"jaw_travel_mm": travel}

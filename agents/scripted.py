@@ -7,7 +7,7 @@ pressure they read is their only memory), so one instance serves any number of e
 ``predict`` accepts a batch of observations as well, like a stable-baselines3 model.
 
 Targets are fractions of ``max_pressure_kpa`` (the observation's units); :meth:`from_kpa` converts.
-The same policies drive the rigid gripper of :mod:`agents.rigid`, whose observation is the jaw's
+The same policies drive the rigid gripper of :mod:`pneunet_env.envs.rigid`, whose observation is the jaw's
 indentation over its travel: there a target is a fraction of the travel.
 
 Every policy here also has ``begin_episode(info)``, called by :func:`agents.evaluate.run_episode` with

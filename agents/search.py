@@ -33,10 +33,9 @@ from typing import Any
 
 import numpy as np
 
+from agents.evaluate import _bar, parse_overrides, run_episode
+from agents.scripted import LinearRamp, save_ramp
 from pneunet_env.config import EnvConfig, load_config
-
-from .evaluate import _bar, parse_overrides, run_episode
-from .scripted import LinearRamp, save_ramp
 
 __all__ = ["Candidate", "object_seeds", "score", "grid_search", "search_ramp", "SENSITIVITY_SETTINGS",
            "strain_crush_fraction", "sensitivity_study", "add_arguments", "run", "main"]
@@ -122,8 +121,6 @@ def make_env(config: EnvConfig, gripper: str):
     import pneunet_env  # noqa: F401  (registers PneuNetGrasp-v0)
 
     if gripper == "rigid":
-        from . import rigid  # noqa: F401  (registers RigidGrasp-v0)
-
         return gym.make("RigidGrasp-v0", config=config)
     if gripper != "pneunet":
         raise ValueError(f"gripper must be 'pneunet' or 'rigid', got {gripper!r}")
@@ -167,7 +164,7 @@ def search_ramp(config: EnvConfig | None = None, gripper: str = "pneunet", n_obj
 def save_best(best: Candidate, path: Path, config: EnvConfig, gripper: str, n_objects: int, seed: int,
               overrides: dict[str, Any], elapsed: float) -> Path:
     """Write the found ramp (with its score and how it was found) as JSON."""
-    from .rigid import default_jaw_travel_mm
+    from pneunet_env.envs.rigid import default_jaw_travel_mm
 
     meta: dict[str, Any] = {"gripper": gripper}
     if gripper == "rigid":
@@ -188,8 +185,8 @@ def save_best(best: Candidate, path: Path, config: EnvConfig, gripper: str, n_ob
 
 def plot_search(cands: Sequence[Candidate], best: Candidate, path: Path, config: EnvConfig, gripper: str) -> Path:
     """Success rate vs target, one line per duration; the best marked."""
-    from .evaluate import _matplotlib
-    from .rigid import default_jaw_travel_mm
+    from agents.evaluate import _matplotlib
+    from pneunet_env.envs.rigid import default_jaw_travel_mm
 
     plt = _matplotlib()
     full, unit = ((default_jaw_travel_mm(config), "mm") if gripper == "rigid" else (config.max_pressure_kpa, "kPa"))
@@ -257,10 +254,10 @@ def sensitivity_study(out: Path, settings=SENSITIVITY_SETTINGS, n_objects: int =
 
     Settings whose object properties are ranges get ``max(episodes, 4)`` episodes per grid point.
     """
-    from .evaluate import evaluate_policies, regime_summary, stiffness_grid
-    from .oracle import Oracle, feasible_stiffness
-    from .policies import PolicyEntry
-    from .rigid import default_jaw_travel_mm
+    from agents.evaluate import evaluate_policies, regime_summary, stiffness_grid
+    from agents.oracle import Oracle, feasible_stiffness
+    from agents.policies import PolicyEntry
+    from pneunet_env.envs.rigid import default_jaw_travel_mm
 
     coarse = tuple(round(0.05 * i, 4) for i in range(1, 21))
     durations = (1, 25, 50)
@@ -327,7 +324,7 @@ def sensitivity_table(results) -> str:
 
 def plot_sensitivity(results, path: Path) -> Path:
     """Small multiples: success vs ``k~`` for best-ramp, oracle and rigid, one panel per setting."""
-    from .evaluate import SOFT_MAX, STIFF_MIN, _matplotlib, _style
+    from agents.evaluate import SOFT_MAX, STIFF_MIN, _matplotlib, _style
 
     plt = _matplotlib()
     n = len(results)
@@ -403,7 +400,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from .policies import BEST_RAMP_PATH, BEST_RIGID_PATH
+    from agents.policies import BEST_RAMP_PATH, BEST_RIGID_PATH
 
     if args.sensitivity:
         out = Path("docs/img/results") if args.out is None else args.out

@@ -11,9 +11,9 @@ YAML mappings or rl-zoo3's strings (``"dict(net_arch=[64, 64])"``, ``"{'norm_obs
 ``action``          ``rate`` (the env's action: the pressure change) or ``setpoint`` (the agent commands a
                     pressure, ``(u + 1)/2`` of ``p_max``, and a rate-limited regulator follows it:
                     :func:`agents.policies.setpoint_to_rate`; the agent still observes the pressure only)
-``vec_env``         ``batched`` (the batched env, :mod:`pneunet_env.sb3`) or ``dummy`` (SB3's
+``vec_env``         ``batched`` (the batched env, :mod:`pneunet_env.envs.sb3`) or ``dummy`` (SB3's
                     ``DummyVecEnv`` over ``gym.make``); ``batched`` falls back to ``dummy`` with a warning
-                    if :mod:`pneunet_env.sb3` is missing
+                    if :mod:`pneunet_env.envs.sb3` is missing
 ``env_kwargs``      keyword arguments of ``gym.make("PneuNetGrasp-v0", ...)`` (config keys)
 ``seed``            the run's seed (training envs ``seed + i``, evaluation env ``seed + 10_000``)
 ``eval_freq``       timesteps between evaluations (``EvalCallback``, ``is_success`` logged)
@@ -30,8 +30,8 @@ hyperparameters), ``run.json`` (seeds, versions, timesteps, wall time, each invo
 ``best_model_vecnormalize.pkl``, ``checkpoints/``, ``final_model.zip`` with ``final_model_vecnormalize.pkl``, and
 ``training.png`` (success rate and return of each evaluation, with matplotlib).
 ``--resume`` continues from the newest checkpoint (or ``--resume PATH.zip``) up to ``n_timesteps``.
-``--export models/ppo_pneunet`` copies the best model, its statistics and a metadata JSON there: the
-policy registry (:mod:`agents.policies`) then loads ``models/ppo_pneunet.zip`` by path.
+``--export agents/models/ppo_pneunet`` copies the best model, its statistics and a metadata JSON there: the
+policy registry (:mod:`agents.policies`) then loads ``agents/models/ppo_pneunet.zip`` by path.
 
 torch and stable-baselines3 are imported only here (``pip install -e ".[rl]"``).
 """
@@ -49,7 +49,7 @@ import warnings
 from pathlib import Path
 from typing import Any
 
-from .policies import ACTION_MODES, setpoint_to_rate
+from agents.policies import ACTION_MODES, setpoint_to_rate
 
 ENV_ID = "PneuNetGrasp-v0"
 ALGOS = ("ppo", "sac", "td3", "a2c")
@@ -176,9 +176,9 @@ def _resolve_policy_kwargs(kwargs: dict[str, Any]) -> dict[str, Any]:
 
 
 def batched_available() -> bool:
-    """Whether :mod:`pneunet_env.sb3` (the SB3 adapter of the batched env) can be imported."""
+    """Whether :mod:`pneunet_env.envs.sb3` (the SB3 adapter of the batched env) can be imported."""
     try:
-        import pneunet_env.sb3  # noqa: F401
+        import pneunet_env.envs.sb3  # noqa: F401
     except ImportError:
         return False
     return True
@@ -231,10 +231,10 @@ def _make_base_vec_env(hp: dict[str, Any], n_envs: int, seed: int, monitor_dir: 
 
     kind = hp["vec_env"]
     if kind == "batched" and not batched_available():
-        warnings.warn("vec_env: batched needs pneunet_env.sb3, which is missing; using dummy", stacklevel=2)
+        warnings.warn("vec_env: batched needs pneunet_env.envs.sb3, which is missing; using dummy", stacklevel=2)
         kind = "dummy"
     if kind == "batched":
-        from pneunet_env.sb3 import SB3VecEnv
+        from pneunet_env.envs.sb3 import SB3VecEnv
 
         venv = SB3VecEnv(num_envs=n_envs, **hp["env_kwargs"])
         if monitor_dir is not None:
@@ -439,9 +439,8 @@ def reference_success(hp: dict[str, Any], seed: int, spec: str = "best-ramp") ->
     import numpy as np
     from stable_baselines3.common.evaluation import evaluate_policy
 
+    from agents.policies import make_policy
     from pneunet_env.config import load_config
-
-    from .policies import make_policy
 
     try:
         policy = make_policy(spec, load_config(None, **hp["env_kwargs"])).policy
@@ -473,7 +472,7 @@ def plot_training(run_dir: Path, path: Path | None = None, reference: float | No
     if not evals.is_file():
         return None
     try:
-        from .evaluate import _matplotlib
+        from agents.evaluate import _matplotlib
 
         plt = _matplotlib()
     except ImportError:
@@ -558,7 +557,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--vec-env", choices=("batched", "dummy"), default=None, help="override vec_env")
     parser.add_argument("--export", type=Path, default=None, metavar="PATH_STEM",
                         help="copy the best model to PATH_STEM.zip (+ _vecnormalize.pkl, .json), "
-                             "e.g. models/ppo_pneunet")
+                             "e.g. agents/models/ppo_pneunet")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 

@@ -2,10 +2,10 @@
 
 import gymnasium as _gym
 
-from .config import EnvConfig, load_config
-from .env import PneuNetGraspEnv
-from .params import ActuatorParams
-from .solver import Equilibrium, LoadPath, SolverOptions, load_path, solve_equilibrium
+from pneunet_env.config import EnvConfig, load_config
+from pneunet_env.envs.grasp import PneuNetGraspEnv
+from pneunet_env.physics.params import ActuatorParams
+from pneunet_env.physics.solver import Equilibrium, LoadPath, SolverOptions, load_path, solve_equilibrium
 
 __version__ = "0.1.0"
 
@@ -26,7 +26,14 @@ ENV_ID = "PneuNetGrasp-v0"
 if ENV_ID not in _gym.registry:
     _gym.register(
         id=ENV_ID,
-        entry_point="pneunet_env.env:PneuNetGraspEnv",
-        vector_entry_point="pneunet_env.vector_env:PneuNetGraspVectorEnv",
+        entry_point="pneunet_env.envs.grasp:PneuNetGraspEnv",
+        vector_entry_point="pneunet_env.envs.grasp_vector:PneuNetGraspVectorEnv",
+        max_episode_steps=EnvConfig().episode_steps,
+    )
+RIGID_ENV_ID = "RigidGrasp-v0"
+if RIGID_ENV_ID not in _gym.registry:
+    _gym.register(
+        id=RIGID_ENV_ID,
+        entry_point="pneunet_env.envs.rigid:RigidGraspEnv",
         max_episode_steps=EnvConfig().episode_steps,
     )

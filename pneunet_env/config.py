@@ -2,7 +2,7 @@
 
 :class:`EnvConfig` is a frozen dataclass: lengths in mm, pressures and moduli in kPa, densities in
 kg/m^3, curvatures in 1/m. The environment converts them once, at construction, to the dimensionless
-model (lengths / ``w``, stresses / ``mu``; see :mod:`pneunet_env.units`). ``configs/env/default.yaml``
+model (lengths / ``w``, stresses / ``mu``; see :mod:`pneunet_env.physics.units`). ``configs/env/default.yaml``
 lists every field with its unit and a comment, and equals ``EnvConfig()`` (a test keeps them in step).
 
 Object properties are ranges ``[low, high]`` sampled per episode (:func:`pneunet_env.task.sample_object`);
@@ -23,10 +23,10 @@ from functools import cached_property
 from pathlib import Path
 from typing import Any
 
-from .models import MODELS
-from .params import ActuatorParams, check_finite
-from .solver import SolverOptions
-from .units import PhysicalActuator, Scales
+from pneunet_env.physics.models import MODELS
+from pneunet_env.physics.params import ActuatorParams, check_finite
+from pneunet_env.physics.solver import SolverOptions
+from pneunet_env.physics.units import PhysicalActuator, Scales
 
 __all__ = ["EnvConfig", "load_config", "DEFAULT_CONFIG_PATH", "RANGE_FIELDS", "LOG_UNIFORM_FIELDS"]
 
@@ -64,7 +64,7 @@ class EnvConfig:
     Reward: ``reward_hold``, ``reward_success``, ``penalty_damage``, ``penalty_slip``. Episode ends:
     ``terminate_on_damage``, ``terminate_on_slip``. Observation: ``observe_volume``. Render:
     ``render_width``, ``render_height``, ``render_chambers``. Solver: ``solver_*`` (dimensionless, see
-    :class:`pneunet_env.solver.SolverOptions`).
+    :class:`pneunet_env.physics.solver.SolverOptions`).
     """
 
     # actuator (supplement Table 1)
@@ -109,7 +109,7 @@ class EnvConfig:
     render_width: int = 480
     render_height: int = 360
     render_chambers: int = 6
-    # solver (dimensionless; pneunet_env.solver.SolverOptions)
+    # solver (dimensionless; pneunet_env.physics.solver.SolverOptions)
     solver_gtol: float = 1e-11
     solver_max_iter: int = 200
     solver_corrector_max_iter: int = 12
@@ -117,7 +117,7 @@ class EnvConfig:
     solver_min_step: float = 1e-9
     solver_max_jump: float = 0.02
     solver_eig_floor: float = 1e-10
-    # model size (pneunet_env.models): "full", or "linear"/"auto" (single env only)
+    # model size (pneunet_env.physics.models): "full", or "linear"/"auto" (single env only)
     model: str = "full"
 
     def __post_init__(self) -> None:
@@ -214,7 +214,7 @@ class EnvConfig:
 
     @cached_property
     def actuator_params(self) -> ActuatorParams:
-        """The dimensionless actuator (:class:`pneunet_env.params.ActuatorParams`)."""
+        """The dimensionless actuator (:class:`pneunet_env.physics.params.ActuatorParams`)."""
         return self.physical_actuator.to_dimensionless()
 
     @cached_property

@@ -6,7 +6,7 @@ traction per unit normal displacement of its surface) follows from eq. 3.2,
 
     k_obj = 2 mu_obj kappa_obj (1/(1 - H kappa_obj)^2 - 1),
 
-computed by :func:`pneunet_env.units.object_stiffness_from_material`. :class:`GraspObject` holds the
+computed by :func:`pneunet_env.physics.units.object_stiffness_from_material`. :class:`GraspObject` holds the
 properties in physical units (what is sampled and reported) and their dimensionless counterparts (what
 the solver needs): ``k~ = k_obj w/mu``, ``w kappa_obj``, ``H/w``. Fields are floats for one object or
 numpy arrays of one shape for a batch.
@@ -19,7 +19,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .units import Scales, object_modulus_from_stiffness, object_stiffness_from_material
+from pneunet_env.physics.units import Scales, object_modulus_from_stiffness, object_stiffness_from_material
 
 __all__ = ["GraspObject", "stiffness_per_modulus", "DEFAULT_SCALES"]
 

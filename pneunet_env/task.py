@@ -1,7 +1,7 @@
 """The grasping task as pure, numpy-vectorised functions (gymnax style): one place for the rules.
 
 Everything here is a plain function of arrays (or scalars) and of :class:`TaskParams`; nothing holds
-state. :class:`pneunet_env.env.PneuNetGraspEnv` calls these functions on scalars, one environment at
+state. :class:`pneunet_env.envs.grasp.PneuNetGraspEnv` calls these functions on scalars, one environment at
 a time; a batched environment calls the same functions on arrays of shape ``(N,)`` and gets the same
 numbers, element by element. Only the equilibrium solve (:func:`pneunet_env.solve_equilibrium`) lies
 between :func:`update_pressure` and :func:`transition`.
@@ -47,9 +47,9 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from .config import LOG_UNIFORM_FIELDS, RANGE_FIELDS, EnvConfig
-from .objects import GraspObject
-from .solver import STATUS_MESSAGES
+from pneunet_env.config import LOG_UNIFORM_FIELDS, RANGE_FIELDS, EnvConfig
+from pneunet_env.objects import GraspObject
+from pneunet_env.physics.solver import STATUS_MESSAGES
 
 __all__ = [
     "TaskParams",
@@ -228,7 +228,7 @@ def _batch_object(shear_modulus_kpa, stiffness, thickness_mm, curvature_per_m, d
                   scales) -> GraspObject:
     """:meth:`GraspObject.from_material` (``stiffness=None``) or :meth:`~GraspObject.from_stiffness` for a batch.
 
-    The same checks and the same formulas (eq. 3.2 in :func:`pneunet_env.units.object_stiffness_from_material`),
+    The same checks and the same formulas (eq. 3.2 in :func:`pneunet_env.physics.units.object_stiffness_from_material`),
     as array operations instead of a loop over objects; ``ValueError`` names the first bad value.
     """
     given = shear_modulus_kpa if stiffness is None else stiffness
@@ -382,11 +382,11 @@ def update_pressure(pressure, action, params: TaskParams):
 
 _STATUS_BY_CODE = np.array(["not solved (inactive)"] + [STATUS_MESSAGES[c] for c in range(max(STATUS_MESSAGES) + 1)],
                            dtype=object)
-"""Status messages by ``code + 1``: :data:`pneunet_env.solver.STATUS_MESSAGES`, and -1 for an env not solved."""
+"""Status messages by ``code + 1``: :data:`pneunet_env.physics.solver.STATUS_MESSAGES`, and -1 for an env not solved."""
 
 
 class SolvedState(NamedTuple):
-    """An equilibrium with the attributes of :class:`pneunet_env.solver.Equilibrium` that the task reads.
+    """An equilibrium with the attributes of :class:`pneunet_env.physics.solver.Equilibrium` that the task reads.
 
     Scalars for one environment, ``(N,)`` arrays for a batch (``status`` then an object array of strings).
     Dimensionless: pressure and traction ``/mu``, lengths ``/w``; see :func:`solved_state`.
@@ -414,14 +414,14 @@ def solved_state(
     pressure, kappa, side_strain, volume_change, energy, gradient_norm, min_eigenvalue, iterations, substeps, snapped,
     status_code, object_stiffness, object_curvature, chamber_height: float,
 ) -> SolvedState:
-    """A solve's raw result (:func:`pneunet_env.solver.step_state`'s tuple, or a
-    :class:`pneunet_env.batched.BatchEquilibrium`'s columns) as a :class:`SolvedState`.
+    """A solve's raw result (:func:`pneunet_env.physics.solver.step_state`'s tuple, or a
+    :class:`pneunet_env.physics.batched.BatchEquilibrium`'s columns) as a :class:`SolvedState`.
 
-    The contact quantities follow :class:`pneunet_env.solver.Equilibrium` exactly: top-wall strain
+    The contact quantities follow :class:`pneunet_env.physics.solver.Equilibrium` exactly: top-wall strain
     ``e_m = d (1 + e_s) kappa~``; indentation ``delta~ = (kappa~ - kappa~_obj)/(kappa~ kappa~_obj)`` where
     ``kappa~ > kappa~_obj`` and there is an object (``k~ > 0``), else 0; traction ``F~ = k~ delta~``; in contact
     where also ``k~ > 0``.
-    ``status_code`` indexes :data:`pneunet_env.solver.STATUS_MESSAGES` (``<= 1``: converged; -1 in a batch: not
+    ``status_code`` indexes :data:`pneunet_env.physics.solver.STATUS_MESSAGES` (``<= 1``: converged; -1 in a batch: not
     solved).
     """
     if not isinstance(kappa, np.ndarray):  # one environment: plain Python arithmetic, the solver's own
@@ -607,7 +607,7 @@ def build_info(
     """The ``info`` dict, from arrays (or scalars): dimensionless values and physical ones.
 
     Args:
-        eq: the state's equilibrium: anything with the attributes of :class:`pneunet_env.solver.Equilibrium`
+        eq: the state's equilibrium: anything with the attributes of :class:`pneunet_env.physics.solver.Equilibrium`
             (``pressure, curvature, side_strain, top_strain, contact_force, indentation, in_contact,
             volume_change``), e.g. a :class:`SolvedState`.
         solve: the step's solve (its diagnostics: ``converged, iterations, substeps, snapped, gradient_norm,

@@ -11,14 +11,13 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import pneunet_env  # noqa: F401  (registers PneuNetGrasp-v0)
-from agents import rigid  # noqa: F401  (registers RigidGrasp-v0)
 from agents.evaluate import run_episode
 from agents.oracle import Oracle, feasible_stiffness, plan_target
 from agents.policies import BEST_RAMP_PATH, BEST_RIGID_PATH, make_policy, parse_spec
-from agents.rigid import RigidGraspEnv, jaw_indentation
 from agents.scripted import LinearRamp, StepPolicy, load_ramp, save_ramp
 from agents.search import Candidate, best_candidate, search_ramp, strain_crush_fraction
 from pneunet_env import EnvConfig
+from pneunet_env.envs.rigid import RigidGraspEnv, default_jaw_travel_mm, jaw_indentation
 from pneunet_env.objects import GraspObject
 from pneunet_env.task import TaskParams, object_thresholds
 
@@ -93,7 +92,7 @@ def test_best_ramp_loads_its_saved_parameters():
     rigid_data = json.loads(BEST_RIGID_PATH.read_text())
     r = make_policy("rigid")
     assert r.env_id == "RigidGrasp-v0" and r.command == "jaw"
-    assert r.policy.target * rigid.default_jaw_travel_mm(CFG) == pytest.approx(rigid_data["target_mm"])
+    assert r.policy.target * default_jaw_travel_mm(CFG) == pytest.approx(rigid_data["target_mm"])
 
 
 def test_save_and_load_ramp_round_trip(tmp_path):

@@ -7,10 +7,11 @@ import math
 import numpy as np
 import pytest
 
-from pneunet_env import ActuatorParams, SolverOptions, mechanics, solve_equilibrium
-from pneunet_env import batched as B
-from pneunet_env._jit import HAVE_NUMBA
-from pneunet_env.solver import ACCEPT_GTOL, DEFAULT_OPTIONS, STATUS_MESSAGES, params_tuple, step_state
+from pneunet_env import ActuatorParams, SolverOptions, solve_equilibrium
+from pneunet_env.physics import batched as B
+from pneunet_env.physics import mechanics
+from pneunet_env.physics._jit import HAVE_NUMBA
+from pneunet_env.physics.solver import ACCEPT_GTOL, DEFAULT_OPTIONS, STATUS_MESSAGES, params_tuple, step_state
 
 KO = 0.02
 BACKENDS = ["numpy"] + (["numba"] if HAVE_NUMBA else [])

@@ -10,8 +10,8 @@ import yaml
 
 import pneunet_env  # noqa: F401  (registers the environment)
 from pneunet_env.config import DEFAULT_CONFIG_PATH, RANGE_FIELDS, EnvConfig, load_config
-from pneunet_env.solver import SolverOptions
-from pneunet_env.units import PhysicalActuator
+from pneunet_env.physics.solver import SolverOptions
+from pneunet_env.physics.units import PhysicalActuator
 
 
 def test_default_yaml_equals_defaults_and_lists_every_key():
@@ -130,7 +130,7 @@ def test_gym_make_takes_path_dict_and_overrides(tmp_path):
 def test_registered_time_limit_is_the_default_episode_length():
     spec = gym.spec("PneuNetGrasp-v0")
     assert spec.max_episode_steps == EnvConfig().episode_steps
-    assert spec.entry_point == "pneunet_env.env:PneuNetGraspEnv"
+    assert spec.entry_point == "pneunet_env.envs.grasp:PneuNetGraspEnv"
     env = gym.make("pneunet_env:PneuNetGrasp-v0")
     assert env.spec.max_episode_steps == EnvConfig().episode_steps
     env.close()

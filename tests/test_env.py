@@ -9,7 +9,7 @@ from gymnasium.utils.env_checker import check_env
 
 import pneunet_env  # noqa: F401  (registers the environment)
 from agents.scripted import LinearRamp, StepPolicy
-from pneunet_env.env import PneuNetGraspEnv
+from pneunet_env.envs.grasp import PneuNetGraspEnv
 
 
 @pytest.fixture(autouse=True)

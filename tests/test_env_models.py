@@ -1,4 +1,4 @@
-"""The env's ``model`` option: ``full`` (default), ``linear``, ``auto`` (pneunet_env.models)."""
+"""The env's ``model`` option: ``full`` (default), ``linear``, ``auto`` (pneunet_env.physics.models)."""
 
 from __future__ import annotations
 
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 import pneunet_env  # noqa: F401
-from pneunet_env.models import AUTO_TOLERANCE
+from pneunet_env.physics.models import AUTO_TOLERANCE
 
 
 def _episode(model: str, stiffness: float, actions):

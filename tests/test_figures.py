@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from pneunet_env import ActuatorParams, cli
-from pneunet_env.figures import (
+from pneunet_env.paper.checks import CHECKS
+from pneunet_env.paper.figures import (
     COLUMNS,
     FIGURES,
     REGIMES,
@@ -28,7 +29,6 @@ from pneunet_env.figures import (
     unloading,
     write_table,
 )
-from pneunet_env.paper_checks import CHECKS
 
 REQUIRED = ("pressure", "curvature", "contact_force", "object_stiffness", "gent_limit", "branch")
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
@@ -223,7 +223,7 @@ def test_critical_pressure_refines_the_peak_and_reports_snaps():
 
 
 def test_linear_rows_follow_eq_17_and_stop_where_the_quadratic_energy_does():
-    from pneunet_env.linear import LinearModel
+    from pneunet_env.physics.linear import LinearModel
 
     params = ActuatorParams()
     ps = np.linspace(0.0, 3.0, 301)
@@ -235,5 +235,5 @@ def test_linear_rows_follow_eq_17_and_stop_where_the_quadratic_energy_does():
 
 
 def test_figures_module_imports_without_matplotlib():
-    code = "import sys, pneunet_env.figures, pneunet_env.paper_checks; assert 'matplotlib' not in sys.modules"
+    code = "import sys, pneunet_env.paper.figures, pneunet_env.paper.checks; assert 'matplotlib' not in sys.modules"
     subprocess.run([sys.executable, "-c", code], check=True)

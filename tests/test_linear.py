@@ -5,8 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pneunet_env import ActuatorParams, mechanics, solve_equilibrium
-from pneunet_env.linear import LinearModel
+from pneunet_env import ActuatorParams, solve_equilibrium
+from pneunet_env.physics import mechanics
+from pneunet_env.physics.linear import LinearModel
 
 GEOMETRIES = [{}, {"chamber_height": 1.3, "side_thickness": 0.3, "top_thickness": 0.7, "base_thickness": 0.4}]
 

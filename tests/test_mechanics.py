@@ -7,8 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from pneunet_env import ActuatorParams, mechanics
-from pneunet_env.mechanics import energy, energy_grad_hess, in_domain, kcot_half, scalar_terms, volume_change
+from pneunet_env import ActuatorParams
+from pneunet_env.physics import mechanics
+from pneunet_env.physics.mechanics import energy, energy_grad_hess, in_domain, kcot_half, scalar_terms, volume_change
 
 # Points (kappa~, e_s, p~, k~_obj, w kappa_obj) spread over the domain: near kappa = 0, the series/direct switch
 # of kappa cot(kappa/2), both sides of contact onset, the balloon region, and near the Gent limit.

@@ -1,4 +1,4 @@
-"""Model selection: ``full``, ``linear`` and ``auto`` (pneunet_env.models)."""
+"""Model selection: ``full``, ``linear`` and ``auto`` (pneunet_env.physics.models)."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from pneunet_env import ActuatorParams, Equilibrium, solve_equilibrium
-from pneunet_env.linear import LinearModel
-from pneunet_env.models import (
+from pneunet_env.physics.linear import LinearModel
+from pneunet_env.physics.models import (
     AUTO_TOLERANCE,
     MODELS,
     ModelEquilibrium,

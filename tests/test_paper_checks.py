@@ -9,9 +9,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from pneunet_env import paper_checks
-from pneunet_env.figures import FIGURES, QUICK, Table, compute_figures, load_tables, write_table
-from pneunet_env.paper_checks import CHECKS, CheckResult, render_markdown, run_checks
+from pneunet_env.paper import checks as paper_checks
+from pneunet_env.paper.checks import CHECKS, CheckResult, render_markdown, run_checks
+from pneunet_env.paper.figures import FIGURES, QUICK, Table, compute_figures, load_tables, write_table
 
 KNOWN_DISAGREEMENTS = {"smooth_gent_supp"}
 """Statements this model contradicts, on purpose: the supplement's 'mollified by increasing J' (main §4 says the

@@ -7,7 +7,7 @@ import math
 import pytest
 
 from pneunet_env import ActuatorParams
-from pneunet_env.units import (
+from pneunet_env.physics.units import (
     PAPER_MODULUS_PER_STIFFNESS_PA,
     PhysicalActuator,
     Scales,
@@ -97,7 +97,7 @@ def test_scales_convert_both_ways():
 
 @pytest.mark.parametrize("value", [0.0, -1.0, float("nan"), float("inf"), "x"])
 def test_check_positive_names_the_bad_value(value):
-    from pneunet_env.params import check_positive
+    from pneunet_env.physics.params import check_positive
 
     with pytest.raises(ValueError, match="jaw_step_mm"):
         check_positive("jaw_step_mm", value)

@@ -8,8 +8,9 @@ import numpy as np
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from pneunet_env import ActuatorParams, load_path, mechanics, solve_equilibrium
-from pneunet_env.solver import ACCEPT_GTOL
+from pneunet_env import ActuatorParams, load_path, solve_equilibrium
+from pneunet_env.physics import mechanics
+from pneunet_env.physics.solver import ACCEPT_GTOL
 
 
 @st.composite

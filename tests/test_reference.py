@@ -5,10 +5,10 @@ from __future__ import annotations
 import pytest
 
 from pneunet_env import ActuatorParams, solve_equilibrium
-from pneunet_env.reference import reference_path
+from pneunet_env.physics.reference import reference_path
 
 mpmath = pytest.importorskip("mpmath")
-from pneunet_env.reference import reference_minimum  # noqa: E402
+from pneunet_env.physics.reference import reference_minimum  # noqa: E402
 
 
 @pytest.mark.parametrize(

@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 import pneunet_env  # noqa: F401  (registers the environment)
-from pneunet_env.params import ActuatorParams
-from pneunet_env.render import RenderState, contact_sheet, read_png, render_frame, save_png
+from pneunet_env.envs.render import RenderState, contact_sheet, read_png, render_frame, save_png
+from pneunet_env.physics.params import ActuatorParams
 
 
 def _state(**kw) -> RenderState:
@@ -110,7 +110,7 @@ def test_png_round_trip_and_contact_sheet(tmp_path):
 
 
 def test_render_command_writes_frames_and_sheet(tmp_path):
-    from pneunet_env.commands import render as cmd
+    from pneunet_env.cli import render as cmd
 
     parser = argparse.ArgumentParser()
     cmd.add_arguments(parser)

@@ -19,8 +19,8 @@ from stable_baselines3.common.vec_env import (  # noqa: E402
 from stable_baselines3.common.vec_env.util import dict_to_obs, obs_space_info  # noqa: E402
 
 import pneunet_env  # noqa: E402, F401
-from pneunet_env.sb3 import SB3VecEnv  # noqa: E402
-from pneunet_env.vector_env import PneuNetGraspVectorEnv  # noqa: E402
+from pneunet_env.envs.grasp_vector import PneuNetGraspVectorEnv  # noqa: E402
+from pneunet_env.envs.sb3 import SB3VecEnv  # noqa: E402
 
 SHORT = dict(squeeze_steps=8, hold_steps=8, max_episode_steps=16)
 

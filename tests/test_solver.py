@@ -7,8 +7,9 @@ import math
 import numpy as np
 import pytest
 
-from pneunet_env import ActuatorParams, load_path, mechanics, solve_equilibrium
-from pneunet_env.solver import ACCEPT_GTOL, Equilibrium
+from pneunet_env import ActuatorParams, load_path, solve_equilibrium
+from pneunet_env.physics import mechanics
+from pneunet_env.physics.solver import ACCEPT_GTOL, Equilibrium
 
 KO = 0.02  # w kappa_obj, the paper's object
 

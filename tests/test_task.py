@@ -10,7 +10,7 @@ import pytest
 from pneunet_env import task
 from pneunet_env.config import EnvConfig, load_config
 from pneunet_env.objects import GraspObject, stiffness_per_modulus
-from pneunet_env.units import PAPER_MODULUS_PER_STIFFNESS_PA, object_stiffness_from_material
+from pneunet_env.physics.units import PAPER_MODULUS_PER_STIFFNESS_PA, object_stiffness_from_material
 
 CFG = EnvConfig()
 TP = task.TaskParams.from_config(CFG)

@@ -9,9 +9,9 @@ from gymnasium.vector import AutoresetMode
 
 import pneunet_env  # noqa: F401  (registers the environment)
 from pneunet_env import task
-from pneunet_env._jit import HAVE_NUMBA
 from pneunet_env.config import load_config
-from pneunet_env.vector_env import PCG64Streams, PneuNetGraspVectorEnv, _seed_words
+from pneunet_env.envs.grasp_vector import PCG64Streams, PneuNetGraspVectorEnv, _seed_words
+from pneunet_env.physics._jit import HAVE_NUMBA
 
 # Short episodes and wide object ranges, so that a few hundred steps hold many ends, auto-resets,
 # terminations (damage, slip) and time-limit truncations.

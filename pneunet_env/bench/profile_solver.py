@@ -8,7 +8,7 @@ compares the env against CartPole). The workload is env-like: equilibria at rand
 
 Rows:
 
-* ``solve_equilibrium``: the public API, validation and an :class:`~pneunet_env.solver.Equilibrium` included.
+* ``solve_equilibrium``: the public API, validation and an :class:`~pneunet_env.physics.solver.Equilibrium` included.
 * ``step_state``: the compiled continuation called from Python (what an env's step can call).
 * ``step_state, p1 = p0``: the warm start alone (one energy evaluation at the previous equilibrium).
 * ``numba call overhead``: an empty compiled function with the same arguments.
@@ -28,8 +28,8 @@ from collections.abc import Callable
 
 import numpy as np
 
-from .. import batched, mechanics, solver
-from .._jit import HAVE_NUMBA
+from pneunet_env.physics import batched, mechanics, solver
+from pneunet_env.physics._jit import HAVE_NUMBA
 
 __all__ = ["workload", "count_evaluations", "profile", "main"]
 

@@ -2,7 +2,7 @@
 
 Every method solves fixed loading paths (scenes) the way a user would: one solve per pressure, warm-started
 from its own previous answer. Each answer is compared with a high-precision reference
-(:mod:`pneunet_env.reference`: mpmath, 30 digits, on the quasi-static branch) and classified:
+(:mod:`pneunet_env.physics.reference`: mpmath, 30 digits, on the quasi-static branch) and classified:
 
 =================  ==============================================================================
 outcome            meaning
@@ -41,12 +41,12 @@ from pathlib import Path
 
 import numpy as np
 
-from .. import mechanics
-from .._jit import HAVE_NUMBA
-from ..linear import LinearModel
-from ..models import AUTO_TOLERANCE, equilibrium_for_model, linear_state
-from ..params import ActuatorParams
-from ..solver import minimise_state, solve_equilibrium
+from pneunet_env.physics import mechanics
+from pneunet_env.physics._jit import HAVE_NUMBA
+from pneunet_env.physics.linear import LinearModel
+from pneunet_env.physics.models import AUTO_TOLERANCE, equilibrium_for_model, linear_state
+from pneunet_env.physics.params import ActuatorParams
+from pneunet_env.physics.solver import minimise_state, solve_equilibrium
 
 __all__ = [
     "CORRECT_TOL",
@@ -162,13 +162,13 @@ _REFERENCE_CACHE: dict[tuple, np.ndarray] = {}
 
 def reference_states(pressures: Sequence[float], object_stiffness: float, object_curvature: float,
                      params: ActuatorParams) -> np.ndarray:
-    """High-precision states ``(n, 2)`` along the quasi-static path (:func:`pneunet_env.reference.reference_path`).
+    """High-precision states ``(n, 2)`` along the quasi-static path (``reference_path``).
 
     Cached per path within the process.
     """
     key = (tuple(float(p) for p in pressures), float(object_stiffness), float(object_curvature), params)
     if key not in _REFERENCE_CACHE:
-        from ..reference import reference_path
+        from pneunet_env.physics.reference import reference_path
 
         k, s = reference_path(np.asarray(key[0]), object_stiffness, object_curvature, params)
         _REFERENCE_CACHE[key] = np.column_stack([k, s])
@@ -213,7 +213,7 @@ class Method:
 class _Energy:
     """The energy at fixed pressure, with its analytic derivatives, as scipy wants it; counts evaluations.
 
-    The formulas are :data:`pneunet_env.mechanics.scalar_terms` (those of ``energy_grad_hess``, on Python
+    The formulas are :data:`pneunet_env.physics.mechanics.scalar_terms` (those of ``energy_grad_hess``, on Python
     floats). Outside the domain the energy is ``inf`` and the derivatives NaN, as ``energy_grad_hess`` gives.
     """
 
@@ -284,7 +284,7 @@ class PackageMethod(Method):
 
 
 class AutoMethod(Method):
-    """:func:`pneunet_env.models.equilibrium_for_model` with ``model="auto"``, from the previous equilibrium."""
+    """:func:`pneunet_env.physics.models.equilibrium_for_model` with ``model="auto"``, from the previous equilibrium."""
 
     kind = "model"
 
@@ -492,7 +492,7 @@ def _fold_window(k: float, ko: float, params: ActuatorParams, p_max: float, dp: 
     Found with the package's continuation on a ``dp`` grid: the bistable window is ``(p_down, p_up)`` to
     within ``dp``.
     """
-    from ..solver import load_path
+    from pneunet_env.physics.solver import load_path
 
     ps = np.round(np.arange(1, int(round(p_max / dp)) + 1) * dp, 10)
     path = load_path(np.concatenate([ps, ps[-2::-1]]), k, ko, params)
@@ -614,8 +614,8 @@ def _auto_sweep(scenes: list[Scene], refs: dict, repeats: int, progress: bool) -
     Times are the fastest of ``max(repeats, 5)`` passes, ``full`` and ``auto`` passes interleaved so that both
     see the same machine load.
     """
-    from ..models import linear_reach
-    from ..solver import load_path
+    from pneunet_env.physics.models import linear_reach
+    from pneunet_env.physics.solver import load_path
 
     tolerances = sorted({1e-5, 1e-4, 1e-3, 1e-2, AUTO_TOLERANCE})
     passes = max(repeats, 5)

@@ -7,7 +7,7 @@ What it measures (all in one process, one after the other, on whatever machine r
   up front from the action space, each step timed alone (``time.perf_counter``), resets outside the timing;
   the two are measured in alternating rounds so that drifts of the machine hit both. Target: ratio <= 2.
 * **Vector env.** Env-steps per second (``N`` times steps over the wall time of the step loop, auto-resets
-  included) of ``gym.make_vec("PneuNetGrasp-v0", num_envs=N)`` (:class:`~pneunet_env.vector_env.PneuNetGraspVectorEnv`)
+  included) of ``gym.make_vec("PneuNetGrasp-v0", num_envs=N)`` (``PneuNetGraspVectorEnv``)
   and of ``gym.make_vec("CartPole-v1", num_envs=N)`` (Gymnasium's ``CartPoleVectorEnv``) at N = 1, 64,
   1,024 and 16,384, actions drawn up front; the best of a few repeats. Target: >= 1,000,000 at N = 16,384.
 * **Solves.** ``solve_equilibrium`` calls per second (the public API, warm-started along random pressure
@@ -239,8 +239,8 @@ def _solve_workload(n: int, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarr
 def bench_solves(calls: int, batch_n: int, seed: int = 0, backend: str = "auto",
                  acc: _Accuracy | None = None) -> dict[str, Any]:
     """``solve_equilibrium`` calls/s (warm-started walks), ``step_state`` from Python, ``solve_batch`` per env."""
-    from ..batched import solve_batch
-    from ..solver import DEFAULT_OPTIONS, params_tuple, solve_equilibrium, step_state
+    from pneunet_env.physics.batched import solve_batch
+    from pneunet_env.physics.solver import DEFAULT_OPTIONS, params_tuple, solve_equilibrium, step_state
 
     walks = 20
     per_walk = max(1, calls // walks)
@@ -346,7 +346,7 @@ def _load() -> list[float] | None:
 def _machine() -> dict[str, Any]:
     import gymnasium
 
-    from .._jit import HAVE_NUMBA
+    from pneunet_env.physics._jit import HAVE_NUMBA
 
     info = {
         "python": platform.python_version(),
@@ -368,7 +368,7 @@ def _machine() -> dict[str, Any]:
 def run_benchmark(quick: bool = False, progress: bool = True, backend: str = "auto", seed: int = 0,
                   num_envs: tuple[int, ...] = NUM_ENVS) -> dict[str, Any]:
     """Run every part; return the results (what ``speed.json`` holds)."""
-    from .._jit import HAVE_NUMBA
+    from pneunet_env.physics._jit import HAVE_NUMBA
 
     t_start = time.perf_counter()
     load_start = _load()
@@ -542,7 +542,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from .._jit import HAVE_NUMBA
+    from pneunet_env.physics._jit import HAVE_NUMBA
 
     if args.backend == "numba" and not HAVE_NUMBA:
         raise SystemExit("--backend numba needs numba (pip install pneunet-env[fast])")

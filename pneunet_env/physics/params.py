@@ -1,7 +1,7 @@
 """Dimensionless actuator parameters, validated.
 
 Every length is scaled by the chamber width ``w``, every modulus and pressure by the elastomer's
-small-strain shear modulus ``mu`` (see ``docs/physics.md`` and :mod:`pneunet_env.units` for the
+small-strain shear modulus ``mu`` (see ``docs/physics.md`` and :mod:`pneunet_env.physics.units` for the
 physical-unit edges). The defaults are the paper's (supplement Table 1 and section 2).
 """
 

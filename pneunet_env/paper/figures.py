@@ -1,9 +1,9 @@
 """``pneunet-grasp figures``: regenerate the seed paper's figures (PNG + CSV) and check its statements.
 
 Every figure is computed, not drawn by hand: quasi-static pressure sweeps with
-:func:`pneunet_env.solver.load_path` (loading from rest to ``p~ = 1.2``, the end of the paper's axes, then
+:func:`pneunet_env.physics.solver.load_path` (loading from rest to ``p~ = 1.2``, the end of the paper's axes, then
 unloading back to 0 on the same grid), plus the closed-form quadratic model of
-:mod:`pneunet_env.linear` for supplement Fig. 3.
+:mod:`pneunet_env.physics.linear` for supplement Fig. 3.
 
 =================  ==========================================================================================
 file               content
@@ -46,9 +46,9 @@ from pathlib import Path
 
 import numpy as np
 
-from . import mechanics
-from .params import ActuatorParams
-from .solver import load_path
+from pneunet_env.physics import mechanics
+from pneunet_env.physics.params import ActuatorParams
+from pneunet_env.physics.solver import load_path
 
 __all__ = [
     "COLUMNS",
@@ -444,11 +444,11 @@ def compute_curve(spec: CurveSpec, pressures: np.ndarray, unload: bool = True) -
 def linear_rows(params: ActuatorParams, pressures: np.ndarray, figure: str = "supp_fig3") -> Table:
     """The quadratic (linearised) energy's closed-form ``kappa~(p~)`` (supplement eqs. 15-16), as table rows.
 
-    Only pressures below :attr:`pneunet_env.linear.LinearModel.valid_until` (where the quadratic energy still
+    Only pressures below :attr:`pneunet_env.physics.linear.LinearModel.valid_until` (where the quadratic energy still
     has a minimum) are kept. ``model`` is ``quadratic``; ``dcurvature_dpressure`` is a central difference
     of the closed form; solver columns (``converged``, ``gradient_norm``...) are not applicable (NaN / 1).
     """
-    from .linear import LinearModel
+    from pneunet_env.physics.linear import LinearModel
 
     lin = LinearModel(params)
     ps = np.asarray(pressures, dtype=float)
@@ -1066,7 +1066,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from . import paper_checks
+    from pneunet_env.paper import checks as paper_checks
 
     out = Path(args.out)
     if args.table_only:

@@ -1,8 +1,8 @@
 """A model no bigger than the scene needs: ``"full"``, ``"linear"`` or ``"auto"``.
 
-* ``"full"`` — the nonlinear energy (:mod:`pneunet_env.mechanics`), minimised by the package's
-  safeguarded Newton solver with pressure continuation (:func:`pneunet_env.solver.solve_equilibrium`).
-* ``"linear"`` — the quadratic expansion of the energy about rest (:class:`pneunet_env.linear.LinearModel`,
+* ``"full"`` — the nonlinear energy (:mod:`pneunet_env.physics.mechanics`), minimised by the package's
+  safeguarded Newton solver with pressure continuation (:func:`pneunet_env.physics.solver.solve_equilibrium`).
+* ``"linear"`` — the quadratic expansion of the energy about rest (:class:`pneunet_env.physics.linear.LinearModel`,
   supplement eqs. 15-17), solved in closed form. With an object in contact, the Winkler term
   ``(k~/2)(1/kappa_obj - 1/kappa)^2`` is replaced by its own quadratic expansion about first contact,
   ``(k~/2)(kappa - kappa_obj)^2 / kappa_obj^4``, so the model stays one 2x2 linear solve (the contact
@@ -19,7 +19,7 @@
   contact and costs a few flops in the compiled kernel, so skipping it there would save nothing.)
 
 All quantities are dimensionless (lengths / ``w``, stresses and pressure / ``mu``, energy / ``mu t w^2``);
-see :mod:`pneunet_env.units` for physical units. ``pneunet-grasp bench solvers`` measures what
+see :mod:`pneunet_env.physics.units` for physical units. ``pneunet-grasp bench solvers`` measures what
 ``auto`` saves and costs (``docs/solvers.md``).
 """
 
@@ -29,13 +29,20 @@ import math
 from dataclasses import dataclass, fields
 from functools import lru_cache
 
-from . import mechanics
-from .linear import LinearModel
-from .params import ActuatorParams, check_finite, check_object
-from .solver import DEFAULT_OPTIONS, Equilibrium, SolverOptions, check_pressure, params_tuple, solve_equilibrium
+from pneunet_env.physics import mechanics
+from pneunet_env.physics.linear import LinearModel
+from pneunet_env.physics.params import ActuatorParams, check_finite, check_object
+from pneunet_env.physics.solver import (
+    DEFAULT_OPTIONS,
+    Equilibrium,
+    SolverOptions,
+    check_pressure,
+    params_tuple,
+    solve_equilibrium,
+)
 
 try:  # the solver's compiled energy kernel (numba when installed): ~0.3 us per evaluation instead of ~5 us
-    from .solver import _evaluate as _kernel
+    from pneunet_env.physics.solver import _evaluate as _kernel
 except ImportError:  # pragma: no cover - an older solver module: the same formulas in plain Python
 
     def _kernel(k, s, p, prm, kobj, ko):
@@ -93,11 +100,11 @@ def check_model(model: str) -> str:
 
 @dataclass(frozen=True)
 class ModelEquilibrium(Equilibrium):
-    """An :class:`~pneunet_env.solver.Equilibrium` with the model that produced it.
+    """An :class:`~pneunet_env.physics.solver.Equilibrium` with the model that produced it.
 
     It can be passed back as ``previous`` / ``initial`` wherever an ``Equilibrium`` is accepted.
 
-    Attributes (beyond :class:`~pneunet_env.solver.Equilibrium`'s):
+    Attributes (beyond :class:`~pneunet_env.physics.solver.Equilibrium`'s):
         model: ``"full"`` or ``"linear"``: the model actually used (``auto`` picks one per call).
         error_estimate: estimated state error ``max(|d kappa~|, |d e_s|)`` against the full model's
             equilibrium: 0 for the full model, one full-Newton step's length for the linear one.
@@ -150,7 +157,7 @@ def linear_state(
     Returns ``(kappa~, e_s, lam_min, energy, volume_change)`` of the quadratic model (with the object's
     linearised Winkler term when the free linear state is past ``object_curvature``). ``kappa~`` and
     ``e_s`` are NaN where the model's Hessian is not positive definite (beyond
-    :attr:`LinearModel.valid_until <pneunet_env.linear.LinearModel.valid_until>`).
+    :attr:`LinearModel.valid_until <pneunet_env.physics.linear.LinearModel.valid_until>`).
     """
     K11, K12, K22, Q11, Q12, Q22, g0, g1 = _linear_coefficients(params)
     p = pressure
@@ -191,7 +198,7 @@ def linear_equilibrium(
     """The linear model's equilibrium at ``p~`` (closed form, history-free).
 
     Raises ``ValueError`` for invalid input, and for a pressure at or beyond the linear model's
-    validity (:attr:`LinearModel.valid_until <pneunet_env.linear.LinearModel.valid_until>`, ``p~ ~ 1.71`` at the
+    validity (:attr:`LinearModel.valid_until <pneunet_env.physics.linear.LinearModel.valid_until>`, ``p~ ~ 1.71`` at the
     paper's defaults) where its energy has no minimum. ``error_estimate`` is left NaN (not computed):
     see :func:`linear_error_estimate`.
     """

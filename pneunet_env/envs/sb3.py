@@ -4,12 +4,12 @@ SB3 does not accept a ``gymnasium.vector.VectorEnv``; it has its own ``VecEnv`` 
 observations only, ``step_async``/``step_wait``, a list of one info dict per env, an episode that ends is reset
 in the same step with its last observation in ``info["terminal_observation"]`` and ``info["TimeLimit.truncated"]``
 set when a time limit, not a terminal state, ended it). :class:`SB3VecEnv` translates, so PPO, SAC, A2C, ...
-train straight on :class:`pneunet_env.vector_env.PneuNetGraspVectorEnv` (its ``SAME_STEP`` autoreset is SB3's
+train straight on :class:`pneunet_env.envs.grasp_vector.PneuNetGraspVectorEnv` (its ``SAME_STEP`` autoreset is SB3's
 convention already)::
 
     from stable_baselines3 import PPO
     from stable_baselines3.common.vec_env import VecMonitor
-    from pneunet_env.sb3 import SB3VecEnv
+    from pneunet_env.envs.sb3 import SB3VecEnv
 
     venv = VecMonitor(SB3VecEnv(num_envs=64))          # gym.make_vec("PneuNetGrasp-v0", num_envs=64) inside
     PPO("MlpPolicy", venv).learn(200_000)
@@ -40,7 +40,7 @@ class SB3VecEnv(VecEnv):
 
     Args:
         env: the vector env; ``None`` makes ``gym.make_vec(env_id, num_envs=num_envs, **make_kwargs)``
-            (:class:`~pneunet_env.vector_env.PneuNetGraspVectorEnv` with the registered 100-step time limit).
+            (:class:`~pneunet_env.envs.grasp_vector.PneuNetGraspVectorEnv` with the registered 100-step time limit).
         num_envs: the number of envs when ``env`` is ``None``.
         info_keys: keys of the vector env's info to copy into SB3's per-env info dicts: ``()`` (default: only
             ``TimeLimit.truncated``, and ``terminal_observation`` and ``is_success`` at episode ends), a list of

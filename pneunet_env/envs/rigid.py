@@ -64,7 +64,7 @@ from gymnasium import spaces
 
 from pneunet_env import task
 from pneunet_env.config import EnvConfig, load_config
-from pneunet_env.params import check_positive
+from pneunet_env.physics.params import check_positive
 
 __all__ = ["RigidGraspEnv", "ENV_ID", "jaw_indentation", "default_jaw_travel_mm"]
 
@@ -201,6 +201,3 @@ class RigidGraspEnv(gym.Env):
             info["is_success"] = bool(out.success)
         return self._obs(), float(out.reward), terminated, truncated, info
 
-
-if ENV_ID not in gym.registry:
-    gym.register(id=ENV_ID, entry_point="agents.rigid:RigidGraspEnv", max_episode_steps=EnvConfig().episode_steps)

@@ -11,7 +11,7 @@ the bin), pins it with ``reset(options={"object_stiffness": k})``, and runs each
 * ``oracle``: knows the object and steps to the best constant pressure for it (:mod:`agents.oracle`): the
   feasibility ceiling, not a blind policy;
 * ``rigid``: a rigid, position-controlled gripper closing to a fixed indentation, tuned like best-ramp
-  (``RigidGrasp-v0``, :mod:`agents.rigid`).
+  (``RigidGrasp-v0``, :mod:`pneunet_env.envs.rigid`).
 
 ``--targets-kpa`` adds plain linear ramps (to each target over ``--ramp-steps`` steps). Everything else is the
 environment's config: the paper's object size, water-like density, the damage and slip thresholds of
@@ -59,9 +59,8 @@ def run(args: argparse.Namespace) -> int:
     from agents.evaluate import SOFT_MAX, STIFF_MIN, run_episode
     from agents.oracle import feasible_stiffness
     from agents.policies import make_policy
-
-    from ..config import load_config
-    from ..objects import stiffness_per_modulus
+    from pneunet_env.config import load_config
+    from pneunet_env.objects import stiffness_per_modulus
 
     if args.bins < 1 or args.episodes < 1 or args.ramp_steps < 1:
         raise SystemExit("--bins, --episodes and --ramp-steps must be >= 1")

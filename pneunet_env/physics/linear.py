@@ -15,7 +15,7 @@ while ``K - p Q`` is positive definite (``p < valid_until``); before that, the b
 full model (a nonlinear effect) already makes it wrong, which the solver study measures.
 
 ``K`` and ``g`` are closed-form; ``Q`` is the exact second derivative of the model's chamber volume at
-rest, evaluated from :mod:`pneunet_env.mechanics`.
+rest, evaluated from :mod:`pneunet_env.physics.mechanics`.
 """
 
 from __future__ import annotations
@@ -24,8 +24,8 @@ import math
 
 import numpy as np
 
-from . import mechanics
-from .params import ActuatorParams
+from pneunet_env.physics import mechanics
+from pneunet_env.physics.params import ActuatorParams
 
 __all__ = ["LinearModel"]
 

@@ -29,7 +29,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .params import ActuatorParams
+from pneunet_env.physics.params import ActuatorParams
 
 __all__ = [
     "EnergyDerivatives",

@@ -4,7 +4,7 @@ For each object stiffness ``k~`` (``--stiffness``, several allowed), one episode
 is run with the object pinned and the scripted :class:`agents.scripted.LinearRamp` to ``--target`` of
 ``p_max`` over ``--steps`` steps; every frame is saved as ``OUT/frames/k<K>_<step>.png`` and a contact
 sheet (one row per stiffness, ``--columns`` frames evenly spaced in time) as ``OUT/sheet.png``.
-PNGs are written with :func:`pneunet_env.render.save_png` (zlib only; no matplotlib needed).
+PNGs are written with :func:`pneunet_env.envs.render.save_png` (zlib only; no matplotlib needed).
 """
 
 from __future__ import annotations
@@ -36,8 +36,7 @@ def run(args: argparse.Namespace) -> int:
 
     import pneunet_env  # noqa: F401  (registers the environment)
     from agents.scripted import LinearRamp
-
-    from ..render import contact_sheet, save_png
+    from pneunet_env.envs.render import contact_sheet, save_png
 
     if args.steps < 1:
         raise SystemExit(f"--steps must be >= 1, got {args.steps}")

@@ -6,8 +6,8 @@ import argparse
 
 import numpy as np
 
-from ..params import ActuatorParams
-from ..solver import load_path
+from pneunet_env.physics.params import ActuatorParams
+from pneunet_env.physics.solver import load_path
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from .params import ActuatorParams, check_finite, check_positive
+from pneunet_env.physics.params import ActuatorParams, check_finite, check_positive
 
 __all__ = [
     "PAPER_MODULUS_PER_STIFFNESS_PA",

@@ -1,7 +1,7 @@
 """An independent high-precision reference for the equilibrium (mpmath, 30+ digits).
 
 Written directly from ``docs/physics.md`` (the paper's eqs. 2.1-2.11 and supplement eq. 10), with none of
-:mod:`pneunet_env.mechanics`'s code: the volume keeps the paper's ``csc + cot`` form (its ``1/kappa``
+:mod:`pneunet_env.physics.mechanics`'s code: the volume keeps the paper's ``csc + cot`` form (its ``1/kappa``
 cancellation is harmless at this precision), and the gradient and Hessian come from mpmath's numerical
 differentiation at high precision, not from the hand-derived formulas. It is slow (milliseconds per
 evaluation) and exists to check the fast solver: tests and ``pneunet-grasp bench solvers`` use it.
@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .params import ActuatorParams, check_object
+from pneunet_env.physics.params import ActuatorParams, check_object
 
 __all__ = ["reference_energy", "reference_minimum", "reference_path", "ReferenceError"]
 
@@ -26,7 +26,7 @@ def _mp():
     try:
         import mpmath
     except ImportError as exc:  # pragma: no cover - depends on the install
-        raise ImportError("pneunet_env.reference needs mpmath: pip install 'pneunet-env[dev]'") from exc
+        raise ImportError("pneunet_env.physics.reference needs mpmath: pip install 'pneunet-env[dev]'") from exc
     return mpmath
 
 
@@ -116,7 +116,7 @@ def reference_path(
     times finer than ``pressures`` (so every fold is localised finely); each requested point is then
     polished independently by :func:`reference_minimum`.
     """
-    from .solver import load_path
+    from pneunet_env.physics.solver import load_path
 
     params = ActuatorParams() if params is None else params
     ps = np.asarray(pressures, dtype=float)

@@ -1,7 +1,7 @@
 """The seed paper's qualitative statements, each measured on the figure data and marked ✓ or ✗.
 
-Every check is a function of the figure tables (:func:`pneunet_env.figures.generate`'s output, or the CSVs
-read back with :func:`pneunet_env.figures.load_tables`) that returns a :class:`CheckResult`: the
+Every check is a function of the figure tables (:func:`pneunet_env.paper.figures.generate`'s output, or the CSVs
+read back with :func:`pneunet_env.paper.figures.load_tables`) that returns a :class:`CheckResult`: the
 statement (quoted or paraphrased, with its section), the number(s) this package measures for it, whether
 it holds in this model, and whether it is expected to (a statement the model contradicts is kept, marked ✗,
 with the reason in its note). :func:`render_markdown` makes the README's table.
@@ -10,13 +10,13 @@ Operational definitions (all on the loading branch, exact path tangents from the
 column, pressure grid of the figures):
 
 * **critical pressure** ``p~_c``: where ``d kappa~/dp~`` is largest (refined by a parabola through the grid
-  maximum), see :func:`pneunet_env.figures.critical_pressure`; if the path snaps (crosses a fold) it is the
+  maximum), see :func:`pneunet_env.paper.figures.critical_pressure`; if the path snaps (crosses a fold) it is the
   last pressure before the snap.
 * **severity** of the balloon jump: that largest ``d kappa~/dp~``; ``inf`` when the path snaps.
 * **saturation curvature**: ``kappa~`` at ``p~ = 1.2``, the end of the paper's axes.
 * **initial slope** (the inverse of the actuator's small-pressure stiffness): ``d kappa~/dp~`` at ``p~ = 0``.
 * **elasticity** of a quantity ``X``: ``d ln X / d ln p``; ``X`` is "held" (controlled) when it is at most
-  :data:`pneunet_env.figures.CONTROL_ELASTICITY`, "saturated" when at most :data:`SATURATED`.
+  :data:`pneunet_env.paper.figures.CONTROL_ELASTICITY`, "saturated" when at most :data:`SATURATED`.
 """
 
 from __future__ import annotations
@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .figures import (
+from pneunet_env.paper.figures import (
     FIG2_STIFFNESSES,
     OBJECT_CURVATURE,
     PAPER_PRESSURE_MAX,
@@ -38,8 +38,8 @@ from .figures import (
     loading,
     unloading,
 )
-from .params import ActuatorParams
-from .units import PAPER_MODULUS_PER_STIFFNESS_PA, Scales, object_stiffness_from_material
+from pneunet_env.physics.params import ActuatorParams
+from pneunet_env.physics.units import PAPER_MODULUS_PER_STIFFNESS_PA, Scales, object_stiffness_from_material
 
 __all__ = ["CHECKS", "CheckResult", "SATURATED", "render_markdown", "run_checks"]
 
@@ -768,8 +768,8 @@ CHECKS: tuple[Callable[[Tables], CheckResult], ...] = (
 
 
 def run_checks(tables: Tables) -> list[CheckResult]:
-    """Run :data:`CHECKS` on the figure tables (all of :data:`pneunet_env.figures.FIGURES` are needed)."""
-    from .figures import FIGURES
+    """Run :data:`CHECKS` on the figure tables (all of :data:`pneunet_env.paper.figures.FIGURES` are needed)."""
+    from pneunet_env.paper.figures import FIGURES
 
     missing = [n for n in FIGURES if n not in tables]
     if missing:

@@ -32,7 +32,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from .params import ActuatorParams
+from pneunet_env.physics.params import ActuatorParams
 
 __all__ = ["RenderState", "render_frame", "save_png", "read_png", "contact_sheet", "HumanViewer"]
 

@@ -1,6 +1,6 @@
 """The quasi-static minimiser: a safeguarded Newton descent with pressure continuation.
 
-An equilibrium at pressure ``p`` is the local minimum of the energy (:mod:`pneunet_env.mechanics`)
+An equilibrium at pressure ``p`` is the local minimum of the energy (:mod:`pneunet_env.physics.mechanics`)
 reached from the previous state. The pieces, from the inside out:
 
 * **minimise** — Newton's method on the 2-unknown energy, with the Hessian's eigenvalues replaced by
@@ -17,7 +17,7 @@ reached from the previous state. The pieces, from the inside out:
   to within ``min_step``).
 
 Both are scalar code, written once in :func:`make_solver` over any energy kernel with the signature
-of :data:`pneunet_env.mechanics.scalar_terms`; with numba installed they are compiled.
+of :data:`pneunet_env.physics.mechanics.scalar_terms`; with numba installed they are compiled.
 """
 
 from __future__ import annotations
@@ -27,9 +27,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import mechanics
-from ._jit import njit
-from .params import ActuatorParams, check_finite, check_object
+from pneunet_env.physics import mechanics
+from pneunet_env.physics._jit import njit
+from pneunet_env.physics.params import ActuatorParams, check_finite, check_object
 
 __all__ = [
     "SolverOptions",
@@ -318,7 +318,7 @@ def _make_parts(terms, jit=njit):
 
 
 def make_solver(terms, jit=njit):
-    """Build ``(minimise, follow)`` for an energy kernel ``terms`` (see :func:`pneunet_env.mechanics.make_terms`).
+    """Build ``(minimise, follow)`` for an energy kernel ``terms`` (see :func:`~.mechanics.make_terms`).
 
     ``minimise(k, s, p, prm, kobj, ko, gtol, max_iter, eig_floor) -> (k, s, U, |g|, lam_min, iters, status)``
     ``follow(k, s, p0, p1, prm, kobj, ko, opts) -> (k, s, U, |g|, lam_min, iters, substeps, snapped, status)``

@@ -1,10 +1,10 @@
 """The quasi-static solve for N independent actuators at once (the engine of a natively batched vector env).
 
 :func:`solve_batch` advances N states ``(kappa~_i, e_s_i)``, each an equilibrium at its pressure
-``p0_i``, to the pressures ``p1_i``, with the algorithm of :mod:`pneunet_env.solver` (safeguarded
+``p0_i``, to the pressures ``p1_i``, with the algorithm of :mod:`pneunet_env.physics.solver` (safeguarded
 modified Newton with an Armijo line search that never leaves the domain, tangent-predictor pressure
 continuation with sub-step control, fold detection and snap). Its answers are those of
-:func:`pneunet_env.solver.step_state` called env by env (to round-off), with two back-ends:
+:func:`pneunet_env.physics.solver.step_state` called env by env (to round-off), with two back-ends:
 
 * ``"numba"`` (numba installed): one compiled loop over the envs calling the compiled scalar
   continuation itself, optionally split over the CPU's cores (``numba.prange``). About a tenth to
@@ -12,12 +12,12 @@ continuation with sub-step control, fold detection and snap). Its answers are th
 * ``"numpy"`` (always available; what ``"auto"`` picks when numba is absent or ``PNEUNET_DISABLE_NUMBA=1``):
   the same control flow, vectorised. Every env carries its own program position (which descent,
   which Newton iteration, which line-search trial, its own sub-step size); each round evaluates the
-  energy once for every env that needs an evaluation (:func:`pneunet_env.mechanics.make_terms`'s
+  energy once for every env that needs an evaluation (:func:`pneunet_env.physics.mechanics.make_terms`'s
   numpy instantiation, the same formulas), then advances each env's control flow with masks. Envs
   that have finished are out of every later round. No Python loop over envs.
 
 All quantities are dimensionless (lengths / ``w``, stresses and pressure / ``mu``), as in
-:mod:`pneunet_env.solver`.
+:mod:`pneunet_env.physics.solver`.
 """
 
 from __future__ import annotations
@@ -30,11 +30,11 @@ from typing import NamedTuple
 
 import numpy as np
 
-from . import _jit, mechanics
-from . import solver as _solver
-from ._jit import HAVE_NUMBA
-from .params import ActuatorParams
-from .solver import (
+from pneunet_env.physics import _jit, mechanics
+from pneunet_env.physics import solver as _solver
+from pneunet_env.physics._jit import HAVE_NUMBA
+from pneunet_env.physics.params import ActuatorParams
+from pneunet_env.physics.solver import (
     DEFAULT_OPTIONS,
     PREDICTED_JUMP_FRACTION,
     STATUS_MESSAGES,
@@ -48,7 +48,7 @@ __all__ = ["BatchEquilibrium", "BATCH_STATUS_MESSAGES", "BACKENDS", "PARALLEL_MI
 
 STATUS_INACTIVE = -1
 BATCH_STATUS_MESSAGES = {STATUS_INACTIVE: "not solved (inactive)", **STATUS_MESSAGES}
-"""``status`` codes of :class:`BatchEquilibrium`: those of :data:`pneunet_env.solver.STATUS_MESSAGES`, and -1."""
+"""``status`` codes of :class:`BatchEquilibrium`: :data:`~pneunet_env.physics.solver.STATUS_MESSAGES`, and -1."""
 
 BACKENDS = ("auto", "numba", "numpy")
 
@@ -178,7 +178,7 @@ def solve_batch(
         kappa: ``kappa~_i = w kappa``: start curvatures, shape ``(N,)`` (or a scalar, broadcast).
         side_strain: ``e_s`` of the start states.
         p0: the pressures ``p~ = p/mu >= 0`` at which the start states are equilibria (they are
-            polished there first, as :func:`pneunet_env.solver.solve_equilibrium` does).
+            polished there first, as :func:`pneunet_env.physics.solver.solve_equilibrium` does).
         p1: the target pressures ``p~ >= 0``.
         object_stiffness: ``k~_obj = k_obj w/mu >= 0`` per env (0: free actuator).
         object_curvature: ``w kappa_obj`` in ``(0, pi)`` per env.
@@ -286,7 +286,7 @@ if HAVE_NUMBA:
 def solve_batch_numba(k, s, p0, p1, kobj, ko, prm, opts, active, parallel: bool | None = None) -> BatchEquilibrium:
     """The compiled back-end on prepared float64 arrays (no validation; see :func:`solve_batch`).
 
-    ``prm`` is :func:`pneunet_env.solver.params_tuple`, ``opts`` :meth:`SolverOptions.as_tuple`.
+    ``prm`` is :func:`pneunet_env.physics.solver.params_tuple`, ``opts`` :meth:`SolverOptions.as_tuple`.
     ``parallel``: split the envs over the cores (``None``: when there are at least
     :data:`PARALLEL_MIN_ENVS`; the threads are numba's, ``NUMBA_NUM_THREADS``).
     """
@@ -320,7 +320,7 @@ _POLISH, _CORRECTOR, _FOLD = 0, 1, 2
 
 
 def _sym2_eigvals(a, b, c):
-    """Vectorised :func:`pneunet_env.solver.sym2_eigvals`."""
+    """Vectorised :func:`pneunet_env.physics.solver.sym2_eigvals`."""
     m = 0.5 * (a + c)
     r = np.hypot(0.5 * (a - c), b)
     lmax = m + r
@@ -334,7 +334,7 @@ def _sym2_eigvals(a, b, c):
 
 
 def _sym2_eigvec(a, b, c):
-    """The eigenvector ``(cos t, sin t)`` of the larger eigenvalue, as :func:`pneunet_env.solver.sym2_eig`."""
+    """The eigenvector ``(cos t, sin t)`` of the larger eigenvalue, as :func:`pneunet_env.physics.solver.sym2_eig`."""
     t = 0.5 * np.arctan2(2.0 * b, a - c)
     return np.cos(t), np.sin(t)
 
@@ -369,7 +369,7 @@ class _Machine:
 def solve_batch_numpy(k, s, p0, p1, kobj, ko, prm, opts, active) -> BatchEquilibrium:
     """The vectorised (numpy-only) back-end on prepared float64 arrays (no validation; see :func:`solve_batch`).
 
-    ``prm`` is :func:`pneunet_env.solver.params_tuple`, ``opts`` :meth:`SolverOptions.as_tuple`.
+    ``prm`` is :func:`pneunet_env.physics.solver.params_tuple`, ``opts`` :meth:`SolverOptions.as_tuple`.
     """
     gtol, max_iter, corr_iter, max_step, min_step, max_jump, eig_floor = opts
     n = k.shape[0]

@@ -1,9 +1,9 @@
 """``PneuNetGrasp-v0`` natively batched: N grasps advanced together by one batched solve (no loop over envs).
 
 :class:`PneuNetGraspVectorEnv` is what ``gym.make_vec("PneuNetGrasp-v0", num_envs=N)`` returns. It runs the
-same rules as the single environment (:class:`pneunet_env.env.PneuNetGraspEnv`), through the same pure
+same rules as the single environment (:class:`pneunet_env.envs.grasp.PneuNetGraspEnv`), through the same pure
 functions of :mod:`pneunet_env.task` called on ``(N,)`` arrays instead of scalars (gymnax style: the single
-env is the N = 1 case), with :func:`pneunet_env.batched.solve_batch` in place of the scalar solve. Envs
+env is the N = 1 case), with :func:`pneunet_env.physics.batched.solve_batch` in place of the scalar solve. Envs
 whose solve has converged leave the batched Newton iteration (the mask is inside ``solve_batch``).
 
 It is, step for step, ``gym.make_vec("PneuNetGrasp-v0", num_envs=N, vectorization_mode="sync",
@@ -24,13 +24,13 @@ from gymnasium import spaces
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from . import task
-from .batched import BACKENDS, solve_batch
-from .config import RANGE_FIELDS, EnvConfig, load_config
-from .env import free_volume_change
-from .objects import GraspObject
-from .params import ActuatorParams
-from .solver import Equilibrium
+from pneunet_env import task
+from pneunet_env.config import RANGE_FIELDS, EnvConfig, load_config
+from pneunet_env.envs.grasp import free_volume_change
+from pneunet_env.objects import GraspObject
+from pneunet_env.physics.batched import BACKENDS, solve_batch
+from pneunet_env.physics.params import ActuatorParams
+from pneunet_env.physics.solver import Equilibrium
 
 __all__ = ["PneuNetGraspVectorEnv", "PCG64Streams"]
 
@@ -230,10 +230,10 @@ class PneuNetGraspVectorEnv(VectorEnv):
 
     ## Description
 
-    Each sub-environment is a :class:`pneunet_env.env.PneuNetGraspEnv` (see its docstring for the task,
+    Each sub-environment is a :class:`pneunet_env.envs.grasp.PneuNetGraspEnv` (see its docstring for the task,
     reward and episode end); they are advanced together as arrays: the pressure update, the damage/slip
     rules, the reward, the observation and the info are the :mod:`pneunet_env.task` functions on ``(N,)``
-    arrays, and the equilibria are one :func:`pneunet_env.batched.solve_batch` call (numba's compiled
+    arrays, and the equilibria are one :func:`pneunet_env.physics.batched.solve_batch` call (numba's compiled
     loop, split over the cores for large N, or the vectorised numpy back-end without numba). Nothing in
     ``step`` or ``reset`` loops over envs in Python.
 
@@ -261,7 +261,7 @@ class PneuNetGraspVectorEnv(VectorEnv):
     NEXT_STEP the step after an episode's end is a reset, its action ignored and its reward 0, so 1 step in
     ``episode_steps + 1`` = 1 % of the batch's work would be wasted and must be masked out of training
     data), and it is the convention of Stable-Baselines3 (``terminal_observation``), which
-    :class:`pneunet_env.sb3.SB3VecEnv` passes straight through. For users: bootstrap a truncated episode's
+    :class:`pneunet_env.envs.sb3.SB3VecEnv` passes straight through. For users: bootstrap a truncated episode's
     value from ``info["final_obs"]``, not from the returned observation; Gymnasium's vector wrappers
     (``RecordEpisodeStatistics``, ...) read the mode from the metadata and handle it.
 
@@ -288,7 +288,7 @@ class PneuNetGraspVectorEnv(VectorEnv):
       task's own end (``squeeze_steps + hold_steps``).
     * ``backend``: the batched solver's, ``"auto"`` (numba if installed, else numpy), ``"numba"`` or ``"numpy"``.
     * ``parallel``: numba only: split the solve over the cores (numba's threads, ``NUMBA_NUM_THREADS``); ``None``
-      from :data:`pneunet_env.batched.PARALLEL_MIN_ENVS` envs on. Pass ``False`` when other processes keep the
+      from :data:`pneunet_env.physics.batched.PARALLEL_MIN_ENVS` envs on. Pass ``False`` when other processes keep the
       cores busy: numba's threads then wait on each other (a step can take 10x longer).
 
     ``reset(options=...)`` takes the single env's pins (applied to every sub-env reset by the call; a value
@@ -297,7 +297,7 @@ class PneuNetGraspVectorEnv(VectorEnv):
 
     ## Info
 
-    The single env's keys (see :class:`pneunet_env.env.PneuNetGraspEnv`), each an ``(N,)`` array with a
+    The single env's keys (see :class:`pneunet_env.envs.grasp.PneuNetGraspEnv`), each an ``(N,)`` array with a
     ``_key`` bool mask, plus ``final_obs``/``final_info`` on steps where an episode ended. Every array is
     fresh (not shared with the env's state or with earlier infos).
 
@@ -385,7 +385,7 @@ class PneuNetGraspVectorEnv(VectorEnv):
         return None if self._eq is None else task.SolvedState(*(np.copy(v) for v in self._eq))
 
     def equilibrium(self, i: int) -> Equilibrium:
-        """Sub-env ``i``'s state as the single env's :class:`~pneunet_env.solver.Equilibrium`."""
+        """Sub-env ``i``'s state as the single env's :class:`~pneunet_env.physics.solver.Equilibrium`."""
         if self._eq is None:
             raise RuntimeError("call reset() first")
         vals = [v[i].item() if isinstance(v[i], np.generic) else v[i] for v in self._eq]
@@ -564,8 +564,8 @@ class PneuNetGraspVectorEnv(VectorEnv):
 
     # ---- rendering ----------------------------------------------------------------------------------------
     def render_state(self, i: int):
-        """What :func:`pneunet_env.render.render_frame` draws for sub-env ``i``."""
-        from .render import RenderState
+        """What :func:`pneunet_env.envs.render.render_frame` draws for sub-env ``i``."""
+        from pneunet_env.envs.render import RenderState
 
         if self._eq is None:
             raise RuntimeError("call reset() before render()")
@@ -598,7 +598,7 @@ class PneuNetGraspVectorEnv(VectorEnv):
                 'Pass render_mode="rgb_array" to gym.make_vec("PneuNetGrasp-v0", ...).'
             )
             return None
-        from .render import render_frame
+        from pneunet_env.envs.render import render_frame
 
         cfg = self.config
         return tuple(render_frame(self.render_state(i), cfg.render_width, cfg.render_height,

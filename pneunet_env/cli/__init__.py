@@ -15,10 +15,10 @@ __all__ = ["COMMANDS", "main"]
 
 # name -> (module, one-line help)
 COMMANDS: dict[str, tuple[str, str]] = {
-    "demo": ("pneunet_env.commands.demo", "main job: evaluate the scripted pressure ramp across object stiffnesses"),
-    "solve": ("pneunet_env.commands.solve", "print a quasi-static loading path for one object"),
-    "render": ("pneunet_env.commands.render", "save rendered frames of an episode as PNG"),
-    "figures": ("pneunet_env.figures", "regenerate the paper's figures (PNG + CSV) and check its statements"),
+    "demo": ("pneunet_env.cli.demo", "main job: evaluate the scripted pressure ramp across object stiffnesses"),
+    "solve": ("pneunet_env.cli.solve", "print a quasi-static loading path for one object"),
+    "render": ("pneunet_env.cli.render", "save rendered frames of an episode as PNG"),
+    "figures": ("pneunet_env.paper.figures", "regenerate the paper's figures (PNG + CSV) and check its statements"),
     "bench speed": ("pneunet_env.bench.speed", "speed benchmark against CartPole (table, JSON, PNG)"),
     "bench solvers": ("pneunet_env.bench.solvers", "solver study: speed vs accuracy, stability map"),
     "evaluate": ("agents.evaluate", "evaluate policies over a stiffness grid (table, JSON, PNGs)"),
@@ -41,7 +41,7 @@ def main(argv: list[str] | None = None) -> int:
         print(_usage())
         return 0
     if argv[0] in ("-V", "--version"):
-        from . import __version__
+        from pneunet_env import __version__
 
         print(f"pneunet-grasp {__version__}")
         return 0

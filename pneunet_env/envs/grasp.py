@@ -9,10 +9,10 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from . import task
-from .config import EnvConfig, load_config
-from .params import ActuatorParams, check_object
-from .solver import Equilibrium, SolverOptions, params_tuple, solve_equilibrium, step_state
+from pneunet_env import task
+from pneunet_env.config import EnvConfig, load_config
+from pneunet_env.physics.params import ActuatorParams, check_object
+from pneunet_env.physics.solver import Equilibrium, SolverOptions, params_tuple, solve_equilibrium, step_state
 
 __all__ = ["PneuNetGraspEnv", "free_volume_change"]
 
@@ -109,7 +109,7 @@ class PneuNetGraspEnv(gym.Env):
     keys (``configs/env/default.yaml`` lists them all, with units). An unknown key or an invalid value
     raises ``ValueError`` naming it. If the config changes the episode length, also pass
     ``max_episode_steps=`` (the registered time limit is the default 100 steps). ``model="full"``
-    (default), ``"linear"`` or ``"auto"`` picks the model a step solves (:mod:`pneunet_env.models`):
+    (default), ``"linear"`` or ``"auto"`` picks the model a step solves (:mod:`pneunet_env.physics.models`):
     ``auto`` uses the linearised model (supplement eqs. 15-17) only where its estimated state error is
     below ``1e-3``; the solver study found it saves no time at this model's size, so ``full`` stays the default.
 
@@ -152,7 +152,7 @@ class PneuNetGraspEnv(gym.Env):
         # The hot path calls the compiled continuation directly with these (see step()).
         self._prm = params_tuple(self._params)
         self._opts = self._options.as_tuple()
-        self._model = cfg.model  # "full" (default), "linear" or "auto": see pneunet_env.models
+        self._model = cfg.model  # "full" (default), "linear" or "auto": see pneunet_env.physics.models
         self._volume_scale = (
             free_volume_change(self._params, cfg.pressure_max, self._options) if cfg.observe_volume else None
         )
@@ -179,7 +179,7 @@ class PneuNetGraspEnv(gym.Env):
 
     @property
     def equilibrium(self) -> Equilibrium | None:
-        """The current quasi-static state (an :class:`~pneunet_env.solver.Equilibrium`, built on request)."""
+        """The current quasi-static state (an :class:`~pneunet_env.physics.solver.Equilibrium`, built on request)."""
         if self._eq is None:
             return None
         return Equilibrium(*self._eq, self._obj.stiffness, self._obj.curvature)
@@ -200,7 +200,7 @@ class PneuNetGraspEnv(gym.Env):
 
     def _solve_model(self, kappa: float, side_strain: float, p0: float, p1: float) -> task.SolvedState:
         """The step under ``config.model`` = ``"linear"`` or ``"auto"`` (``models.equilibrium_for_model``)."""
-        from .models import equilibrium_for_model
+        from pneunet_env.physics.models import equilibrium_for_model
 
         obj = self._obj
         prev = None
@@ -263,7 +263,7 @@ class PneuNetGraspEnv(gym.Env):
                 'Pass render_mode="rgb_array" or "human" to gym.make("PneuNetGrasp-v0", ...).'
             )
             return None
-        from .render import HumanViewer, render_frame
+        from pneunet_env.envs.render import HumanViewer, render_frame
 
         frame = render_frame(self.render_state(), self.config.render_width, self.config.render_height,
                              chambers=self.config.render_chambers)
@@ -275,8 +275,8 @@ class PneuNetGraspEnv(gym.Env):
         return None
 
     def render_state(self):
-        """What :func:`pneunet_env.render.render_frame` draws, from the current state."""
-        from .render import RenderState
+        """What :func:`pneunet_env.envs.render.render_frame` draws, from the current state."""
+        from pneunet_env.envs.render import RenderState
 
         if self._eq is None:
             raise RuntimeError("call reset() before render()")
