@@ -11,7 +11,7 @@ import pytest
 from agents.train import batched_available, latest_checkpoint, load_train_config, parse_literal
 from pneunet_env.cli import main
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 PPO = ROOT / "configs" / "train" / "ppo.yaml"
 SAC = ROOT / "configs" / "train" / "sac.yaml"
 
