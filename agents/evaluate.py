@@ -70,6 +70,7 @@ def run_episode(env, policy, seed: int | None = None, options: dict[str, Any] | 
         solver_failed, commands}`` (``commands`` only with ``record``).
     """
     obs, info = env.reset(seed=seed, options=options)
+    reset_info = info  # the object's constants are in the reset info
     begin = getattr(policy, "begin_episode", None)
     if begin is not None:
         begin(info)
@@ -87,8 +88,8 @@ def run_episode(env, policy, seed: int | None = None, options: dict[str, Any] | 
         if terminated or truncated:
             break
     out = {
-        "stiffness": float(info["object_stiffness"]),
-        "shear_modulus_kpa": float(info["object_shear_modulus_kpa"]),
+        "stiffness": float(reset_info["object_stiffness"]),
+        "shear_modulus_kpa": float(reset_info["object_shear_modulus_kpa"]),
         "success": bool(info.get("is_success", False)),
         "damaged": bool(info["damaged"]),
         "dropped": bool(info["dropped"]),
@@ -108,10 +109,11 @@ def stiffness_grid(config: EnvConfig, n: int, k_min: float | None = None, k_max:
         raise ValueError(f"stiffness grid size must be an integer >= 1, got {n!r}")
     from pneunet_env.objects import stiffness_per_modulus
 
-    unit = float(stiffness_per_modulus(np.mean(config.object_thickness_mm), np.mean(config.object_curvature_per_m),
+    oc = config.objects
+    unit = float(stiffness_per_modulus(np.mean(oc.object_thickness_mm), np.mean(oc.object_curvature_per_m),
                                        config.scales))
-    lo = unit * config.object_shear_modulus_kpa[0] if k_min is None else float(k_min)
-    hi = unit * config.object_shear_modulus_kpa[1] if k_max is None else float(k_max)
+    lo = unit * config.objects.object_shear_modulus_kpa[0] if k_min is None else float(k_min)
+    hi = unit * config.objects.object_shear_modulus_kpa[1] if k_max is None else float(k_max)
     if not 0.0 < lo <= hi:
         raise ValueError(f"need 0 < k_min <= k_max, got {lo!r} and {hi!r}")
     if n == 1:
@@ -340,14 +342,16 @@ def plot_success(rows, path: str | Path, config: EnvConfig, title: str | None = 
         a.set_ylabel(what)
     ax_s.set_xlabel("object stiffness k~ = k_obj w / mu")
     ax.legend(loc="lower center", bbox_to_anchor=(0.5, 1.1), ncol=2, fontsize=8, frameon=False)
-    unit = float(stiffness_per_modulus(np.mean(config.object_thickness_mm), np.mean(config.object_curvature_per_m),
+    oc = config.objects
+    unit = float(stiffness_per_modulus(np.mean(oc.object_thickness_mm), np.mean(oc.object_curvature_per_m),
                                        config.scales))
     top = ax.secondary_xaxis("top", functions=(lambda k: k / unit, lambda m: m * unit))
     top.set_xlabel("object shear modulus mu_obj (kPa)", fontsize=8)
     top.tick_params(labelsize=8)
     if title is None:
-        title = (f"rho = {_fmt_range(config.object_density_kg_m3)} kg/m^3, mu_f = {config.friction_coefficient:g}, "
-                 f"crushed at delta > {config.crush_fraction:g} H, H = {_fmt_range(config.object_thickness_mm)} mm")
+        oc, tc = config.objects, config.task
+        title = (f"rho = {_fmt_range(oc.object_density_kg_m3)} kg/m^3, mu_f = {tc.friction_coefficient:g}, "
+                 f"crushed at delta > {tc.crush_fraction:g} H, H = {_fmt_range(oc.object_thickness_mm)} mm")
     fig.suptitle(title, fontsize=9, y=0.995)
     fig.tight_layout()
     path = Path(path)
@@ -374,7 +378,7 @@ def plot_schedules(traces, path: str | Path, config: EnvConfig) -> Path:
     n_steps = config.episode_steps
     for ax, name in zip(axes.flat, names, strict=False):
         ts = [t for t in traces if t["policy"] == name]
-        ax.axvspan(config.squeeze_steps + 0.5, n_steps, color="#dddddd", alpha=0.6, lw=0)
+        ax.axvspan(config.task.squeeze_steps + 0.5, n_steps, color="#dddddd", alpha=0.6, lw=0)
         # longest episode first and widest, so that the schedules, which often coincide, stay visible
         order = sorted(ts, key=lambda t: -len(t["commands"]))
         widths = np.linspace(5.0, 1.4, max(2, len(order)))
@@ -396,8 +400,8 @@ def plot_schedules(traces, path: str | Path, config: EnvConfig) -> Path:
             ax.set_ylabel("jaw closure (mm)")
         else:
             ax.set_ylabel("pressure (kPa)")
-            ax.set_ylim(-1, config.max_pressure_kpa * 1.05)
-        ax.text(0.5 * (config.squeeze_steps + n_steps), ax.get_ylim()[1] * 0.03, "hold", ha="center", fontsize=7.5,
+            ax.set_ylim(-1, config.task.max_pressure_kpa * 1.05)
+        ax.text(0.5 * (config.task.squeeze_steps + n_steps), ax.get_ylim()[1] * 0.03, "hold", ha="center", fontsize=7.5,
                 color="#555555")
         ax.grid(True, alpha=0.3)
     for ax in list(axes.flat)[len(names):]:
@@ -482,9 +486,10 @@ def run(args: argparse.Namespace) -> int:
 
     print(f"pneunet-grasp evaluate: {len(entries)} policies x {len(grid)} stiffnesses "
           f"(k~ {grid[0]:.2g} to {grid[-1]:.2g}) x {args.episodes} episodes, seed {args.seed}")
-    print(f"thresholds: slip when F < rho g H / ({config.grip_faces} mu_f), rho = "
-          f"{_fmt_range(config.object_density_kg_m3)} kg/m^3, mu_f = {config.friction_coefficient:g}; damage when "
-          f"delta > {config.crush_fraction:g} H or F > 3 eps_f mu_obj\n")
+    print(f"thresholds: slip when F < rho g H / ({config.task.grip_faces} mu_f), rho = "
+          f"{_fmt_range(config.objects.object_density_kg_m3)} kg/m^3, mu_f = {config.task.friction_coefficient:g}; "
+          "damage when "
+          f"delta > {config.task.crush_fraction:g} H or F > 3 eps_f mu_obj\n")
     print(decade_table(rows))
     if dist is not None:
         print(f"on {args.objects} objects from the env's own distribution (held-out seeds):")

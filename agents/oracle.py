@@ -59,9 +59,9 @@ def plan_target(
     if not resolution_kpa > 0.0:
         raise ValueError(f"resolution_kpa must be > 0, got {resolution_kpa!r}")
     p_max = config.pressure_max
-    n = max(2, int(math.ceil(config.max_pressure_kpa / resolution_kpa)) + 1)
+    n = max(2, int(math.ceil(config.task.max_pressure_kpa / resolution_kpa)) + 1)
     ps = np.linspace(0.0, p_max, n)
-    lp = load_path(ps, object_stiffness, object_curvature, config.actuator_params, config.solver_options)
+    lp = load_path(ps, object_stiffness, object_curvature, config.actuator_params, config.solver)
     if not lp.converged.all():  # pragma: no cover - never seen; reported rather than hidden
         raise RuntimeError(f"oracle: the loading path did not converge for k~={object_stiffness:g}")
     F = lp.contact_force
@@ -77,7 +77,7 @@ def plan_target(
     i = int(np.argmax(margin))
     return OraclePlan(
         target=float(ps[i] / p_max),
-        pressure_kpa=float(ps[i] * config.shear_modulus_kpa),
+        pressure_kpa=float(ps[i] * config.actuator.shear_modulus_kpa),
         margin=float(margin[i]),
         feasible=bool(margin[i] >= 0.0),
         grip_ratio=float(grip[i]),
@@ -96,7 +96,7 @@ def feasible_stiffness(config: EnvConfig, density_kg_m3: float | None = None) ->
     """
     from pneunet_env.task import TaskParams
 
-    rho = config.object_density_kg_m3[0] if density_kg_m3 is None else float(density_kg_m3)
+    rho = config.objects.object_density_kg_m3[0] if density_kg_m3 is None else float(density_kg_m3)
     tp = TaskParams.from_config(config)
     # the grip traction per mm of thickness, rho g (1 mm) in kPa, over the faces and the friction, in units of mu
     grip = rho * tp.gravity_m_s2 * 1e-6 / (tp.grip_faces * tp.friction_coefficient) / tp.shear_modulus_kpa
@@ -119,7 +119,7 @@ class Oracle:
     def __init__(self, config: EnvConfig | None = None, resolution_kpa: float = 0.5) -> None:
         self.config = EnvConfig() if config is None else config
         self.resolution_kpa = float(resolution_kpa)
-        self.step_fraction = self.config.max_pressure_step_kpa / self.config.max_pressure_kpa
+        self.step_fraction = self.config.task.max_pressure_step_kpa / self.config.task.max_pressure_kpa
         self.plan: OraclePlan | None = None
         self._cache: dict[tuple[float, ...], OraclePlan] = {}
 
@@ -127,7 +127,7 @@ class Oracle:
         if info is None or "object_stiffness" not in info:
             raise ValueError("the oracle needs reset()'s info (object_stiffness, thresholds) at each episode start")
         cfg = self.config
-        mu, w = cfg.shear_modulus_kpa, cfg.width_mm
+        mu, w = cfg.actuator.shear_modulus_kpa, cfg.actuator.width_mm
         key = (float(info["object_stiffness"]), float(info["object_curvature"]), float(info["failure_traction_kpa"]),
                float(info["crush_indentation_mm"]), float(info["grip_traction_kpa"]))
         if key not in self._cache:

@@ -127,24 +127,24 @@ def _check_empty(spec: str, params: dict[str, str], valid: str) -> None:
 
 
 def _ramp(spec, params, config):
-    t = _target(spec, params, config.max_pressure_kpa, "target_kpa", 1.0)
+    t = _target(spec, params, config.task.max_pressure_kpa, "target_kpa", 1.0)
     n = _int(spec, "steps", params.pop("steps", "40"))
     _check_empty(spec, params, "target, target_kpa, steps")
     pol = LinearRamp(t, n, config)
-    return PolicyEntry(spec, f"ramp to {t * config.max_pressure_kpa:.3g} kPa over {n} steps", pol)
+    return PolicyEntry(spec, f"ramp to {t * config.task.max_pressure_kpa:.3g} kPa over {n} steps", pol)
 
 
 def _step(spec, params, config):
-    t = _target(spec, params, config.max_pressure_kpa, "target_kpa", 1.0)
+    t = _target(spec, params, config.task.max_pressure_kpa, "target_kpa", 1.0)
     _check_empty(spec, params, "target, target_kpa")
-    return PolicyEntry(spec, f"step to {t * config.max_pressure_kpa:.3g} kPa", StepPolicy(t, config))
+    return PolicyEntry(spec, f"step to {t * config.task.max_pressure_kpa:.3g} kPa", StepPolicy(t, config))
 
 
 def _best_ramp(spec, params, config):
     path = Path(params.pop("path", BEST_RAMP_PATH))
     _check_empty(spec, params, "path")
     pol = load_ramp(path, config)
-    label = f"best-ramp ({_describe(pol, config.max_pressure_kpa, 'kPa')})"
+    label = f"best-ramp ({_describe(pol, config.task.max_pressure_kpa, 'kPa')})"
     return PolicyEntry(spec, label, pol)
 
 
@@ -314,7 +314,7 @@ class SB3Policy:
             raise ValueError(f"model {str(path)!r}: action mode must be one of {ACTION_MODES}, "
                              f"got {self.action_mode!r}")
         config = EnvConfig() if config is None else config
-        self.step_fraction = config.max_pressure_step_kpa / config.max_pressure_kpa
+        self.step_fraction = config.task.max_pressure_step_kpa / config.task.max_pressure_kpa
         self.model = getattr(sb3, self.algo).load(self.path, device="cpu")
         self.deterministic = deterministic
         vn = vecnormalize_path(self.path) if vecnormalize is None else Path(vecnormalize)

@@ -40,7 +40,7 @@ class _TargetPolicy:
         config = EnvConfig() if config is None else config
         self.target = target
         # the change of p/p_max that an action of 1 makes
-        self.step_fraction = config.max_pressure_step_kpa / config.max_pressure_kpa
+        self.step_fraction = config.task.max_pressure_step_kpa / config.task.max_pressure_kpa
 
     def _next(self, p: np.ndarray) -> np.ndarray:  # the pressure fraction wanted after this step
         raise NotImplementedError
@@ -83,7 +83,7 @@ class LinearRamp(_TargetPolicy):
     @classmethod
     def from_kpa(cls, target_kpa: float, n_steps: int, config: EnvConfig | None = None) -> LinearRamp:
         config = EnvConfig() if config is None else config
-        return cls(target_kpa / config.max_pressure_kpa, n_steps, config)
+        return cls(target_kpa / config.task.max_pressure_kpa, n_steps, config)
 
     def _next(self, p):
         up = np.minimum(p + self.increment, self.target)
@@ -108,7 +108,7 @@ class StepPolicy(_TargetPolicy):
     @classmethod
     def from_kpa(cls, target_kpa: float, config: EnvConfig | None = None) -> StepPolicy:
         config = EnvConfig() if config is None else config
-        return cls(target_kpa / config.max_pressure_kpa, config)
+        return cls(target_kpa / config.task.max_pressure_kpa, config)
 
     def _next(self, p):
         return np.full_like(p, self.target)

@@ -171,7 +171,7 @@ def save_best(best: Candidate, path: Path, config: EnvConfig, gripper: str, n_ob
         travel = default_jaw_travel_mm(config)
         meta.update(target_mm=best.target * travel, jaw_travel_mm=travel)
     else:
-        meta.update(target_kpa=best.target * config.max_pressure_kpa)
+        meta.update(target_kpa=best.target * config.task.max_pressure_kpa)
     meta.update(
         search={"objects": n_objects, "seed": seed, "episode_seeds": "seed * 1000003 + i",
                 "objective": "success rate over the env's object distribution; ties: mean return, then the "
@@ -189,7 +189,7 @@ def plot_search(cands: Sequence[Candidate], best: Candidate, path: Path, config:
     from pneunet_env.envs.rigid import default_jaw_travel_mm
 
     plt = _matplotlib()
-    full, unit = ((default_jaw_travel_mm(config), "mm") if gripper == "rigid" else (config.max_pressure_kpa, "kPa"))
+    full, unit = (default_jaw_travel_mm(config), "mm") if gripper == "rigid" else (config.task.max_pressure_kpa, "kPa")
     fig, ax = plt.subplots(figsize=(7, 3.8))
     durations = sorted({c.n_steps for c in cands})
     cmap = plt.get_cmap("viridis")
@@ -225,7 +225,8 @@ def strain_crush_fraction(config: EnvConfig | None = None) -> float:
     """
     c = EnvConfig() if config is None else config
     mid = lambda r: 0.5 * (r[0] + r[1])  # noqa: E731
-    return mid(c.object_failure_strain) / (mid(c.object_thickness_mm) * 1e-3 * mid(c.object_curvature_per_m))
+    o = c.objects
+    return mid(o.object_failure_strain) / (mid(o.object_thickness_mm) * 1e-3 * mid(o.object_curvature_per_m))
 
 
 _STRAIN = strain_crush_fraction()
@@ -269,7 +270,7 @@ def sensitivity_study(out: Path, settings=SENSITIVITY_SETTINGS, n_objects: int =
         best_r, _ = search_ramp(config, "rigid", n_objects, seed, coarse, durations, 0.01, progress)
         travel = default_jaw_travel_mm(config)
         entries = [
-            PolicyEntry("best-ramp", f"best-ramp ({best_p.target * config.max_pressure_kpa:.3g} kPa, "
+            PolicyEntry("best-ramp", f"best-ramp ({best_p.target * config.task.max_pressure_kpa:.3g} kPa, "
                         f"{best_p.n_steps} steps)", LinearRamp(best_p.target, best_p.n_steps, config)),
             PolicyEntry("oracle", "oracle", Oracle(config), blind=False),
             PolicyEntry("rigid", f"rigid ({best_r.target * travel:.3g} mm, {best_r.n_steps} steps)",
@@ -282,7 +283,7 @@ def sensitivity_study(out: Path, settings=SENSITIVITY_SETTINGS, n_objects: int =
         res = {
             "key": key, "description": desc, "overrides": overrides,
             "feasible_stiffness": feasible_stiffness(config),
-            "best_ramp": {"target_kpa": best_p.target * config.max_pressure_kpa, "n_steps": best_p.n_steps,
+            "best_ramp": {"target_kpa": best_p.target * config.task.max_pressure_kpa, "n_steps": best_p.n_steps,
                           "search_success_rate": best_p.success_rate},
             "rigid": {"target_mm": best_r.target * travel, "n_steps": best_r.n_steps,
                       "search_success_rate": best_r.success_rate, "jaw_travel_mm": travel},

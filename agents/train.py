@@ -219,7 +219,7 @@ def make_vec_env(hp: dict[str, Any], n_envs: int, seed: int, monitor_dir: Path |
         from pneunet_env.config import load_config
 
         cfg = load_config(None, **hp["env_kwargs"])
-        venv = _setpoint_wrapper(venv, cfg.max_pressure_step_kpa / cfg.max_pressure_kpa)
+        venv = _setpoint_wrapper(venv, cfg.task.max_pressure_step_kpa / cfg.task.max_pressure_kpa)
     return venv
 
 

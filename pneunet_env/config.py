@@ -1,15 +1,31 @@
-"""Every parameter of ``PneuNetGrasp-v0``, in physical units, validated; YAML loading.
+"""Every parameter of ``PneuNetGrasp-v0``, in physical units, validated, in five sections; YAML loading.
 
-:class:`EnvConfig` is a frozen dataclass: lengths in mm, pressures and moduli in kPa, densities in
-kg/m^3, curvatures in 1/m. The environment converts them once, at construction, to the dimensionless
-model (lengths / ``w``, stresses / ``mu``; see :mod:`pneunet_env.physics.units`). ``configs/env/default.yaml``
-lists every field with its unit and a comment, and equals ``EnvConfig()`` (a test keeps them in step).
+:class:`EnvConfig` holds five typed sections, each the object its consumer takes:
+
+===============  =============================================  ==========================================
+section          type                                           consumed by
+===============  =============================================  ==========================================
+``actuator``     :class:`~pneunet_env.physics.units.PhysicalActuator`  the physics (``.to_dimensionless()``)
+``objects``      :class:`ObjectConfig`                          the object draw (:mod:`pneunet_env.task`)
+``task``         :class:`TaskConfig`                            the rules (:class:`pneunet_env.task.TaskParams`)
+``solver``       :class:`~pneunet_env.physics.solver.SolverOptions`  the solver
+``render``       :class:`RenderConfig`                          the renderer
+===============  =============================================  ==========================================
+
+Units at this edge: lengths in mm, pressures and moduli in kPa, densities in kg/m^3, curvatures in 1/m; the
+solver's options are dimensionless. The environment converts once, at construction, to the dimensionless model
+(lengths / ``w``, stresses / ``mu``; see :mod:`pneunet_env.physics.units`). ``configs/env/default.yaml`` lists
+every key with its unit and a comment, in the same sections, and equals ``EnvConfig()`` (a test keeps them in
+step).
 
 Object properties are ranges ``[low, high]`` sampled per episode (:func:`pneunet_env.task.sample_object`);
 ``low == high`` fixes the property, and a single number is read as such a range.
 
-Load with :func:`load_config`: ``None`` (defaults), a mapping, a YAML path or an :class:`EnvConfig`,
-then keyword overrides. An unknown key or an invalid value raises ``ValueError`` naming it.
+Load with :func:`load_config`: ``None`` (defaults), a mapping, a YAML path or an :class:`EnvConfig`, then keyword
+overrides. A mapping (or YAML file) may be nested by section (``{"task": {"max_pressure_kpa": 40}}``) or flat
+(``{"max_pressure_kpa": 40}``): a flat key is a field name (every field name is unique across the sections) or
+``SECTION_FIELD`` (``render_width``, ``solver_gtol``). An unknown key or an invalid value raises ``ValueError``
+naming it.
 """
 
 from __future__ import annotations
@@ -18,17 +34,27 @@ import dataclasses
 import math
 import os
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
 from typing import Any
 
-from pneunet_env.physics.models import MODELS
 from pneunet_env.physics.params import ActuatorParams, check_finite
 from pneunet_env.physics.solver import SolverOptions
 from pneunet_env.physics.units import PhysicalActuator, Scales
 
-__all__ = ["EnvConfig", "load_config", "DEFAULT_CONFIG_PATH", "RANGE_FIELDS", "LOG_UNIFORM_FIELDS"]
+__all__ = [
+    "EnvConfig",
+    "ObjectConfig",
+    "TaskConfig",
+    "RenderConfig",
+    "SECTIONS",
+    "load_config",
+    "flat_key",
+    "DEFAULT_CONFIG_PATH",
+    "RANGE_FIELDS",
+    "LOG_UNIFORM_FIELDS",
+]
 
 DEFAULT_CONFIG_PATH = Path(__file__).resolve().parents[1] / "configs" / "env" / "default.yaml"
 """``configs/env/default.yaml`` in a source checkout (the same values as ``EnvConfig()``)."""
@@ -40,106 +66,81 @@ RANGE_FIELDS = (
     "object_density_kg_m3",
     "object_failure_strain",
 )
-"""The object's properties: ``(low, high)`` ranges, sampled once per episode."""
+"""The object's properties: ``(low, high)`` ranges, sampled once per episode (the fields of :class:`ObjectConfig`)."""
 
 LOG_UNIFORM_FIELDS = ("object_shear_modulus_kpa", "object_density_kg_m3")
 """Ranges sampled log-uniformly (the others uniformly)."""
 
-_INT_FIELDS = ("squeeze_steps", "hold_steps", "grip_faces", "render_width", "render_height", "render_chambers",
-               "solver_max_iter", "solver_corrector_max_iter")
-_BOOL_FIELDS = ("observe_volume", "terminate_on_damage", "terminate_on_slip")
-
 
 @dataclass(frozen=True)
-class EnvConfig:
-    """All parameters of the environment (physical units at this edge). See ``configs/env/default.yaml``.
+class ObjectConfig:
+    """The objects an episode draws from: ``(low, high)`` ranges (physical units), sampled once per episode.
 
-    Actuator (supplement Table 1): ``width_mm`` (w), ``chamber_height_mm`` (d), ``depth_mm`` (t),
-    ``base_thickness_mm`` (h_b), ``side_thickness_mm`` (h_s), ``top_thickness_mm`` (h_m),
-    ``shear_modulus_kpa`` (mu), ``base_modulus_kpa`` (E_b), ``poisson_ratio`` (nu), ``gent_limit`` (J).
-
-    Control: ``max_pressure_kpa`` (p_max), ``max_pressure_step_kpa`` (pressure change per step at
-    ``|action| = 1``). Task: ``squeeze_steps``, ``hold_steps``. Object ranges: see :data:`RANGE_FIELDS`.
-    Damage and slip: ``crush_fraction``, ``friction_coefficient``, ``grip_faces``, ``gravity_m_s2``.
-    Reward: ``reward_hold``, ``reward_success``, ``penalty_damage``, ``penalty_slip``. Episode ends:
-    ``terminate_on_damage``, ``terminate_on_slip``. Observation: ``observe_volume``. Render:
-    ``render_width``, ``render_height``, ``render_chambers``. Solver: ``solver_*`` (dimensionless, see
-    :class:`pneunet_env.physics.solver.SolverOptions`).
+    Attributes:
+        object_shear_modulus_kpa: ``mu_obj`` (kPa), log-uniform.
+        object_thickness_mm: ``H`` (mm), uniform.
+        object_curvature_per_m: the outer curvature ``kappa_obj`` (1/m), uniform.
+        object_density_kg_m3: ``rho`` (kg/m^3), log-uniform.
+        object_failure_strain: ``eps_f``, uniform: the object fails at a stress ``eps_f E_obj = 3 eps_f mu_obj``.
     """
 
-    # actuator (supplement Table 1)
-    width_mm: float = 5.0
-    chamber_height_mm: float = 5.0
-    depth_mm: float = 5.0
-    base_thickness_mm: float = 2.5
-    side_thickness_mm: float = 2.5
-    top_thickness_mm: float = 2.5
-    shear_modulus_kpa: float = 50.0
-    base_modulus_kpa: float = 3000.0
-    poisson_ratio: float = 0.5
-    gent_limit: float = 20.0
-    # control
-    max_pressure_kpa: float = 60.0
-    max_pressure_step_kpa: float = 3.0
-    # task
-    squeeze_steps: int = 50
-    hold_steps: int = 50
-    # object (ranges, sampled per episode)
     object_shear_modulus_kpa: tuple[float, float] = (0.1, 1500.0)
     object_thickness_mm: tuple[float, float] = (10.0, 10.0)
     object_curvature_per_m: tuple[float, float] = (4.0, 4.0)
     object_density_kg_m3: tuple[float, float] = (1000.0, 1000.0)
     object_failure_strain: tuple[float, float] = (0.3, 0.3)
-    # damage and slip
+
+    def __post_init__(self) -> None:
+        for name in RANGE_FIELDS:
+            lo, hi = getattr(self, name)
+            if lo <= 0.0:
+                raise ValueError(f"config key {name!r} must be > 0, got range {[lo, hi]!r}")
+        # The object must fit the model: H kappa_obj < 1 (eq. 3.2).
+        h_hi, c_hi = self.object_thickness_mm[1], self.object_curvature_per_m[1]
+        if h_hi * 1e-3 * c_hi >= 1.0:
+            raise ValueError(
+                f"config keys 'object_thickness_mm' (up to {h_hi!r} mm) and 'object_curvature_per_m' (up to "
+                f"{c_hi!r} /m) allow an object thicker than its outer radius (need H kappa_obj < 1)"
+            )
+
+
+@dataclass(frozen=True)
+class TaskConfig:
+    """The task: control, episode, damage and slip, reward, episode end, observation (physical units).
+
+    Attributes:
+        max_pressure_kpa: ``p_max``: the pressure is kept in ``[0, p_max]``.
+        max_pressure_step_kpa: the pressure change per step at ``|action| = 1``.
+        squeeze_steps: steps with the object on its support (damage checked, slip not).
+        hold_steps: steps with the object lifted (slip checked); then the episode truncates.
+        crush_fraction: crushed through when the indentation exceeds ``crush_fraction H``.
+        friction_coefficient: ``mu_f`` between the actuator and the object.
+        grip_faces: opposed faces sharing the weight (a two-sided pinch: 2).
+        gravity_m_s2: ``g``.
+        reward_hold, reward_success, penalty_damage, penalty_slip: the reward's terms (>= 0; penalties subtracted).
+        terminate_on_damage, terminate_on_slip: whether damage / a drop ends the episode.
+        observe_volume: add the chamber's volume change (a flow sensor) to the observation.
+    """
+
+    max_pressure_kpa: float = 60.0
+    max_pressure_step_kpa: float = 3.0
+    squeeze_steps: int = 50
+    hold_steps: int = 50
     crush_fraction: float = 1.0
     friction_coefficient: float = 0.5
     grip_faces: int = 2
     gravity_m_s2: float = 9.81
-    # reward
     reward_hold: float = 0.02
     reward_success: float = 1.0
     penalty_damage: float = 2.0
     penalty_slip: float = 1.0
-    # episode end
     terminate_on_damage: bool = True
     terminate_on_slip: bool = True
-    # observation
     observe_volume: bool = False
-    # render
-    render_width: int = 480
-    render_height: int = 360
-    render_chambers: int = 6
-    # solver (dimensionless; pneunet_env.physics.solver.SolverOptions)
-    solver_gtol: float = 1e-11
-    solver_max_iter: int = 200
-    solver_corrector_max_iter: int = 12
-    solver_max_step: float = 0.05
-    solver_min_step: float = 1e-9
-    solver_max_jump: float = 0.02
-    solver_eig_floor: float = 1e-10
-    # model size (pneunet_env.physics.models): "full", or "linear"/"auto" (single env only)
-    model: str = "full"
 
     def __post_init__(self) -> None:
-        for f in dataclasses.fields(self):
-            name, value = f.name, getattr(self, f.name)
-            if name == "model":
-                if value not in MODELS:
-                    raise ValueError(f"config key 'model' must be one of {MODELS}, got {value!r}")
-            elif name in RANGE_FIELDS:
-                object.__setattr__(self, name, _range(name, value))
-            elif name in _BOOL_FIELDS:
-                if not isinstance(value, bool):
-                    raise ValueError(f"config key {name!r} must be true or false, got {value!r}")
-            elif name in _INT_FIELDS:
-                object.__setattr__(self, name, _int(name, value, minimum=1))
-            else:
-                object.__setattr__(self, name, _float(name, value))
-        positive = ("width_mm", "chamber_height_mm", "depth_mm", "base_thickness_mm", "side_thickness_mm",
-                    "top_thickness_mm", "shear_modulus_kpa", "base_modulus_kpa", "gent_limit", "max_pressure_kpa",
-                    "max_pressure_step_kpa", "crush_fraction", "friction_coefficient", "gravity_m_s2",
-                    "solver_gtol", "solver_max_step", "solver_min_step", "solver_max_jump", "solver_eig_floor")
-        for name in positive:
+        for name in ("max_pressure_kpa", "max_pressure_step_kpa", "crush_fraction", "friction_coefficient",
+                     "gravity_m_s2"):
             if getattr(self, name) <= 0.0:
                 raise ValueError(f"config key {name!r} must be > 0, got {getattr(self, name)!r}")
         for name in ("reward_hold", "reward_success", "penalty_damage", "penalty_slip"):
@@ -148,118 +149,157 @@ class EnvConfig:
                     f"config key {name!r} must be >= 0 (penalties are magnitudes, subtracted), "
                     f"got {getattr(self, name)!r}"
                 )
-        for name in RANGE_FIELDS:
-            lo, hi = getattr(self, name)
-            if lo <= 0.0:
-                raise ValueError(f"config key {name!r} must be > 0, got range {[lo, hi]!r}")
         if self.max_pressure_step_kpa > self.max_pressure_kpa:
             raise ValueError(
                 f"config key 'max_pressure_step_kpa' = {self.max_pressure_step_kpa!r} exceeds "
                 f"'max_pressure_kpa' = {self.max_pressure_kpa!r}"
             )
-        if self.render_chambers > 12:
-            raise ValueError(f"config key 'render_chambers' must be <= 12, got {self.render_chambers!r}")
-        if self.render_width < 32 or self.render_height < 32:
-            raise ValueError(
-                f"config keys 'render_width'/'render_height' must be >= 32 pixels, got "
-                f"{self.render_width!r} x {self.render_height!r}"
-            )
-        # The object must fit the model: H kappa_obj < 1 (eq. 3.2) and w kappa_obj < pi.
-        h_hi, c_hi = self.object_thickness_mm[1], self.object_curvature_per_m[1]
-        if h_hi * 1e-3 * c_hi >= 1.0:
-            raise ValueError(
-                f"config keys 'object_thickness_mm' (up to {h_hi!r} mm) and 'object_curvature_per_m' (up to "
-                f"{c_hi!r} /m) allow an object thicker than its outer radius (need H kappa_obj < 1)"
-            )
-        if self.width_mm * 1e-3 * c_hi >= math.pi:
-            raise ValueError(
-                f"config key 'object_curvature_per_m' (up to {c_hi!r} /m) gives w kappa_obj >= pi for "
-                f"width_mm = {self.width_mm!r}"
-            )
-        # Actuator geometry and solver options are validated by their own classes (names prefixed here).
-        try:
-            _ = self.actuator_params
-        except ValueError as exc:
-            raise ValueError(f"config: invalid actuator ({exc})") from None
-        try:
-            _ = self.solver_options
-        except ValueError as exc:
-            raise ValueError(f"config: invalid solver_* keys ({exc})") from None
 
-    # ---- derived, dimensionless -------------------------------------------------------------
     @property
     def episode_steps(self) -> int:
         """Steps in an episode: ``squeeze_steps + hold_steps`` (then ``truncated``)."""
         return self.squeeze_steps + self.hold_steps
 
+
+MAX_RENDER_PIXELS = 4096
+"""Largest ``render.width`` / ``render.height`` (a frame is drawn supersampled in memory)."""
+
+
+@dataclass(frozen=True)
+class RenderConfig:
+    """The picture: ``width`` x ``height`` pixels, ``chambers`` chambers drawn (the model is one unit cell)."""
+
+    width: int = 480
+    height: int = 360
+    chambers: int = 6
+
+    def __post_init__(self) -> None:
+        if self.chambers > 12:
+            raise ValueError(f"config key 'render.chambers' must be <= 12, got {self.chambers!r}")
+        for name in ("width", "height"):
+            v = getattr(self, name)
+            if not 32 <= v <= MAX_RENDER_PIXELS:
+                raise ValueError(f"config key 'render.{name}' must be in [32, {MAX_RENDER_PIXELS}] pixels, got {v!r}")
+
+
+SECTIONS: dict[str, type] = {
+    "actuator": PhysicalActuator,
+    "objects": ObjectConfig,
+    "task": TaskConfig,
+    "solver": SolverOptions,
+    "render": RenderConfig,
+}
+"""The config's sections and their types, in order."""
+
+
+def _section_fields() -> dict[str, tuple[str, str]]:
+    """Flat key -> ``(section, field)``: every field by its own name, and as ``SECTION_FIELD``."""
+    out: dict[str, tuple[str, str]] = {}
+    for section, cls in SECTIONS.items():
+        for f in dataclasses.fields(cls):
+            if f.name in out:  # pragma: no cover - a test keeps field names unique across sections
+                raise RuntimeError(f"config field {f.name!r} is in two sections")
+            out[f.name] = (section, f.name)
+    for section, cls in SECTIONS.items():
+        for f in dataclasses.fields(cls):
+            out.setdefault(f"{section}_{f.name}", (section, f.name))
+    return out
+
+
+FLAT_KEYS = _section_fields()
+
+
+def flat_key(key: str) -> tuple[str, str]:
+    """``(section, field)`` of a flat config key; ``ValueError`` naming an unknown one."""
+    try:
+        return FLAT_KEYS[key]
+    except (KeyError, TypeError):
+        valid = ", ".join(f"{s}.{f.name}" for s, c in SECTIONS.items() for f in dataclasses.fields(c))
+        raise ValueError(f"unknown config key {key!r}; valid keys: {valid}") from None
+
+
+@dataclass(frozen=True)
+class EnvConfig:
+    """All parameters of the environment, in five typed sections (physical units at this edge).
+
+    ``configs/env/default.yaml`` lists every key. Each section is the object its consumer takes: ``actuator``
+    the physics, ``objects`` the object draw, ``task`` the rules, ``solver`` the solver, ``render`` the renderer.
+    """
+
+    actuator: PhysicalActuator = field(default_factory=PhysicalActuator)
+    objects: ObjectConfig = field(default_factory=ObjectConfig)
+    task: TaskConfig = field(default_factory=TaskConfig)
+    solver: SolverOptions = field(default_factory=SolverOptions)
+    render: RenderConfig = field(default_factory=RenderConfig)
+
+    def __post_init__(self) -> None:
+        for section, cls in SECTIONS.items():
+            if not isinstance(getattr(self, section), cls):
+                raise ValueError(f"config section {section!r} must be a {cls.__name__}, got "
+                                 f"{type(getattr(self, section)).__name__}")
+        c_hi = self.objects.object_curvature_per_m[1]
+        if self.actuator.width_mm * 1e-3 * c_hi >= math.pi:
+            raise ValueError(
+                f"config key 'object_curvature_per_m' (up to {c_hi!r} /m) gives w kappa_obj >= pi for "
+                f"width_mm = {self.actuator.width_mm!r}"
+            )
+        try:  # the dimensionless actuator validates the geometry (a cavity must remain)
+            _ = self.actuator_params
+        except ValueError as exc:
+            raise ValueError(f"config: invalid actuator ({exc})") from None
+
+    # ---- derived, dimensionless -------------------------------------------------------------
+    @property
+    def episode_steps(self) -> int:
+        """Steps in an episode: ``squeeze_steps + hold_steps`` (then ``truncated``)."""
+        return self.task.episode_steps
+
     @cached_property
     def scales(self) -> Scales:
         """The model's scales: ``w`` (mm) and ``mu`` (kPa)."""
-        return Scales(self.width_mm, self.shear_modulus_kpa)
-
-    @cached_property
-    def physical_actuator(self) -> PhysicalActuator:
-        return PhysicalActuator(
-            width_mm=self.width_mm,
-            height_mm=self.chamber_height_mm,
-            depth_mm=self.depth_mm,
-            base_thickness_mm=self.base_thickness_mm,
-            side_thickness_mm=self.side_thickness_mm,
-            top_thickness_mm=self.top_thickness_mm,
-            shear_modulus_kpa=self.shear_modulus_kpa,
-            base_modulus_kpa=self.base_modulus_kpa,
-            poisson_ratio=self.poisson_ratio,
-            gent_limit=self.gent_limit,
-        )
+        return self.actuator.scales
 
     @cached_property
     def actuator_params(self) -> ActuatorParams:
         """The dimensionless actuator (:class:`pneunet_env.physics.params.ActuatorParams`)."""
-        return self.physical_actuator.to_dimensionless()
-
-    @cached_property
-    def solver_options(self) -> SolverOptions:
-        return SolverOptions(
-            gtol=self.solver_gtol,
-            max_iter=self.solver_max_iter,
-            corrector_max_iter=self.solver_corrector_max_iter,
-            max_step=self.solver_max_step,
-            min_step=self.solver_min_step,
-            max_jump=self.solver_max_jump,
-            eig_floor=self.solver_eig_floor,
-        )
+        return self.actuator.to_dimensionless()
 
     @property
     def pressure_max(self) -> float:
         """``p~_max = p_max / mu``."""
-        return self.max_pressure_kpa / self.shear_modulus_kpa
+        return self.task.max_pressure_kpa / self.actuator.shear_modulus_kpa
 
     @property
     def pressure_step(self) -> float:
         """Largest pressure change per step, ``dp~ = max_pressure_step / mu``."""
-        return self.max_pressure_step_kpa / self.shear_modulus_kpa
+        return self.task.max_pressure_step_kpa / self.actuator.shear_modulus_kpa
 
     # ---- conversion ---------------------------------------------------------------------------
-    def to_dict(self) -> dict[str, Any]:
-        """Plain values (ranges as lists), in field order; ``EnvConfig(**c.to_dict()) == c``."""
-        out: dict[str, Any] = {}
-        for f in dataclasses.fields(self):
-            v = getattr(self, f.name)
-            out[f.name] = list(v) if f.name in RANGE_FIELDS else v
+    def to_dict(self) -> dict[str, dict[str, Any]]:
+        """Plain nested values (ranges as lists), in section and field order; ``load_config(c.to_dict()) == c``."""
+        out: dict[str, dict[str, Any]] = {}
+        for section in SECTIONS:
+            obj = getattr(self, section)
+            out[section] = {f.name: (list(v) if isinstance(v := getattr(obj, f.name), tuple) else v)
+                            for f in dataclasses.fields(obj)}
         return out
 
     def replace(self, **changes: Any) -> EnvConfig:
-        """A copy with some keys changed (validated; unknown keys raise ``ValueError`` naming them)."""
+        """A copy with some keys changed (flat or by section; validated; unknown keys raise ``ValueError``)."""
         return load_config(self, **changes)
 
     @classmethod
     def from_yaml(cls, path: str | os.PathLike) -> EnvConfig:
-        """Read a YAML file of config keys (any subset; the rest default)."""
+        """Read a YAML file of config keys (any subset, nested by section or flat; the rest default)."""
         return load_config(Path(path))
 
     @classmethod
     def keys(cls) -> tuple[str, ...]:
-        return tuple(f.name for f in dataclasses.fields(cls))
+        """Every field's name (each is a valid flat key)."""
+        return tuple(f.name for c in SECTIONS.values() for f in dataclasses.fields(c))
+
+
+# ---- value checks by field type -----------------------------------------------------------------------------
 
 
 def _float(name: str, value: Any) -> float:
@@ -268,7 +308,7 @@ def _float(name: str, value: Any) -> float:
     return check_finite(f"config key {name!r}", value)
 
 
-def _int(name: str, value: Any, minimum: int) -> int:
+def _int(name: str, value: Any, minimum: int = 1) -> int:
     if isinstance(value, bool):
         raise ValueError(f"config key {name!r} must be an integer, got {value!r}")
     try:
@@ -280,6 +320,12 @@ def _int(name: str, value: Any, minimum: int) -> int:
     if i < minimum:
         raise ValueError(f"config key {name!r} must be >= {minimum}, got {value!r}")
     return i
+
+
+def _bool(name: str, value: Any) -> bool:
+    if type(value).__name__ in ("bool", "bool_"):  # Python's bool or numpy's
+        return bool(value)
+    raise ValueError(f"config key {name!r} must be true or false, got {value!r}")
 
 
 def _range(name: str, value: Any) -> tuple[float, float]:
@@ -300,6 +346,28 @@ def _range(name: str, value: Any) -> tuple[float, float]:
     return (lo, hi)
 
 
+_CHECKS = {"float": _float, "int": _int, "bool": _bool, "tuple[float, float]": _range}
+
+
+def _build_section(section: str, values: Mapping[str, Any]):
+    """The section's object from its field values (each checked by its declared type first)."""
+    cls = SECTIONS[section]
+    kinds = {f.name: f.type for f in dataclasses.fields(cls)}
+    checked = {}
+    for name, value in values.items():
+        if name not in kinds:
+            flat_key(name)  # raises, naming it
+        checked[name] = _CHECKS[kinds[name]](name, value)
+    try:
+        return cls(**checked)
+    except ValueError as exc:
+        msg = str(exc)
+        raise ValueError(msg if msg.startswith("config") else f"config section {section!r}: {msg}") from None
+
+
+# ---- loading -----------------------------------------------------------------------------------------------
+
+
 def _read_yaml(path: Path) -> dict[str, Any]:
     import yaml
 
@@ -307,7 +375,10 @@ def _read_yaml(path: Path) -> dict[str, Any]:
         text = path.read_text()
     except OSError as exc:
         raise ValueError(f"cannot read config file {str(path)!r}: {exc}") from None
-    data = yaml.safe_load(text)
+    try:
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise ValueError(f"config file {str(path)!r} is not valid YAML: {exc}") from None
     if data is None:
         return {}
     if not isinstance(data, dict):
@@ -315,29 +386,51 @@ def _read_yaml(path: Path) -> dict[str, Any]:
     return data
 
 
+def _nested(values: Mapping[str, Any], into: dict[str, dict[str, Any]]) -> None:
+    """Merge ``values`` (nested by section and/or flat keys) into ``into`` (section -> field -> value)."""
+    for key, value in values.items():
+        if key in SECTIONS and isinstance(value, Mapping):
+            for name, v in value.items():
+                if not isinstance(name, str):
+                    raise ValueError(f"unknown config key {name!r} in section {key!r}")
+                section, fname = flat_key(name) if name not in {f.name for f in dataclasses.fields(SECTIONS[key])} \
+                    else (key, name)
+                if section != key:
+                    raise ValueError(f"config key {name!r} belongs to section {section!r}, not {key!r}")
+                into[key][fname] = v
+        elif key in SECTIONS and isinstance(value, SECTIONS[key]):
+            into[key] = {f.name: getattr(value, f.name) for f in dataclasses.fields(value)}
+        elif key in SECTIONS:
+            raise ValueError(f"config section {key!r} must be a mapping of keys, got {value!r}")
+        else:
+            section, fname = flat_key(key)
+            into[section][fname] = value
+
+
 def load_config(config: EnvConfig | Mapping[str, Any] | str | os.PathLike | None = None, **overrides: Any) -> EnvConfig:
     """Build an :class:`EnvConfig` from defaults, then ``config``, then ``overrides``.
 
     Args:
-        config: ``None`` (defaults), an :class:`EnvConfig`, a mapping of keys, or the path of a YAML file.
-        overrides: keys to set on top.
+        config: ``None`` (defaults), an :class:`EnvConfig`, a mapping of keys (nested by section, or flat), or the
+            path of a YAML file holding such a mapping.
+        overrides: keys to set on top (flat names such as ``max_pressure_kpa=40``, or a section's mapping such as
+            ``task={"hold_steps": 10}``).
 
     Raises:
         ValueError: naming an unknown key or an invalid value.
     """
+    values: dict[str, dict[str, Any]] = {s: {} for s in SECTIONS}
     if config is None:
-        base: dict[str, Any] = {}
+        pass
     elif isinstance(config, EnvConfig):
-        base = config.to_dict()
+        if not overrides:
+            return config
+        _nested({s: getattr(config, s) for s in SECTIONS}, values)
     elif isinstance(config, Mapping):
-        base = dict(config)
+        _nested(config, values)
     elif isinstance(config, (str, os.PathLike)):
-        base = _read_yaml(Path(config))
+        _nested(_read_yaml(Path(config)), values)
     else:
         raise ValueError(f"config must be None, an EnvConfig, a mapping or a YAML path, got {type(config).__name__}")
-    merged = {**base, **overrides}
-    valid = set(EnvConfig.keys())
-    for key in merged:
-        if not isinstance(key, str) or key not in valid:
-            raise ValueError(f"unknown config key {key!r}; valid keys: {', '.join(EnvConfig.keys())}")
-    return EnvConfig(**merged)
+    _nested(overrides, values)
+    return EnvConfig(**{s: _build_section(s, v) for s, v in values.items()})

@@ -1,10 +1,14 @@
 """The grasping task as pure, numpy-vectorised functions (gymnax style): one place for the rules.
 
-Everything here is a plain function of arrays (or scalars) and of :class:`TaskParams`; nothing holds
-state. :class:`pneunet_env.envs.grasp.PneuNetGraspEnv` calls these functions on scalars, one environment at
-a time; a batched environment calls the same functions on arrays of shape ``(N,)`` and gets the same
-numbers, element by element. Only the equilibrium solve (:func:`pneunet_env.solve_equilibrium`) lies
-between :func:`update_pressure` and :func:`transition`.
+Everything here is a plain function of arrays (or scalars) and of :class:`EnvParams`; nothing holds
+state. **One step**, :func:`step`, takes an :class:`EnvState` and an action to the next :class:`EnvState`,
+observation, reward and episode flags: the pressure (or jaw) update, the contact, the rules and the
+observation. Every environment is a thin shell around it: :class:`pneunet_env.envs.grasp.PneuNetGraspEnv` calls
+it on scalars, :class:`pneunet_env.envs.grasp_vector.PneuNetGraspVectorEnv` on ``(N,)`` arrays (with
+:func:`autoreset` for the episodes that end), and :class:`pneunet_env.envs.rigid.RigidGraspEnv` with a rigid
+jaw. Only the contact differs, and it is pluggable: a function ``contact(kappa~, e_s, p0, p1, obj, params) ->
+Equilibrium`` (:func:`newton_contact` and :func:`newton_contact_batch` solve the pneu-net's quasi-static
+equilibrium; the jaw's is kinematic).
 
 **Episode.** An episode is one grasp of one object, ``squeeze_steps + hold_steps`` steps long.
 
@@ -41,26 +45,39 @@ object's sampled properties and the ``*_kpa``/``*_mm``/``*_per_m`` entries of :f
 
 from __future__ import annotations
 
+import dataclasses
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any, NamedTuple
 
 import numpy as np
 
 from pneunet_env.config import LOG_UNIFORM_FIELDS, RANGE_FIELDS, EnvConfig
 from pneunet_env.objects import GraspObject
-from pneunet_env.physics.solver import STATUS_MESSAGES
+from pneunet_env.physics.batched import solve_batch
+from pneunet_env.physics.contact import winkler_stiffness
+from pneunet_env.physics.solver import (
+    Equilibrium,
+    equilibrium,
+    params_tuple,
+    solve_equilibrium,
+    status_message,
+    step_state,
+)
 
 __all__ = [
     "TaskParams",
+    "EnvParams",
+    "EnvState",
+    "Step",
     "Thresholds",
     "TaskState",
     "Outcome",
+    "Contact",
+    "INFO_LEVELS",
     "PIN_KEYS",
     "sample_object",
     "object_from_uniforms",
-    "SolvedState",
-    "solved_state",
     "object_info",
     "object_thresholds",
     "check_action",
@@ -69,6 +86,13 @@ __all__ = [
     "initial_state",
     "transition",
     "observation",
+    "newton_contact",
+    "newton_contact_batch",
+    "free_volume_change",
+    "reset_state",
+    "step",
+    "merge",
+    "autoreset",
     "build_info",
 ]
 
@@ -108,25 +132,11 @@ class TaskParams(NamedTuple):
 
     @classmethod
     def from_config(cls, config: EnvConfig) -> TaskParams:
-        return cls(
-            pressure_max=config.pressure_max,
-            pressure_step=config.pressure_step,
-            squeeze_steps=config.squeeze_steps,
-            hold_steps=config.hold_steps,
-            reward_hold=config.reward_hold,
-            reward_success=config.reward_success,
-            penalty_damage=config.penalty_damage,
-            penalty_slip=config.penalty_slip,
-            terminate_on_damage=config.terminate_on_damage,
-            terminate_on_slip=config.terminate_on_slip,
-            crush_fraction=config.crush_fraction,
-            friction_coefficient=config.friction_coefficient,
-            grip_faces=config.grip_faces,
-            gravity_m_s2=config.gravity_m_s2,
-            width_mm=config.width_mm,
-            shear_modulus_kpa=config.shear_modulus_kpa,
-            depth_mm=config.depth_mm,
-        )
+        """From the config's ``task`` section by field name, with the pressures made dimensionless and the scales."""
+        a, tc = config.actuator, config.task
+        derived = {"pressure_max": config.pressure_max, "pressure_step": config.pressure_step,
+                   "width_mm": a.width_mm, "shear_modulus_kpa": a.shear_modulus_kpa, "depth_mm": a.depth_mm}
+        return cls(**derived, **{f: getattr(tc, f) for f in cls._fields if f not in derived})
 
     @property
     def episode_steps(self) -> int:
@@ -183,7 +193,7 @@ def object_from_uniforms(
         batch = bool(shape)
     values: dict[str, Any] = {}
     for i, name in enumerate(RANGE_FIELDS):
-        lo, hi = getattr(config, name)
+        lo, hi = getattr(config.objects, name)
         v = lo * (hi / lo) ** u[i] if name in LOG_UNIFORM_FIELDS else lo + (hi - lo) * u[i]
         values[name] = v if batch else float(v)
     pins = {k: v for k, v in (pinned or {}).items() if v is not None}
@@ -200,7 +210,7 @@ def object_from_uniforms(
             values[key] = _pin(key, pins[key], shape, batch)
     if "object_curvature" in pins:
         values["object_curvature_per_m"] = _pin("object_curvature", pins["object_curvature"], shape, batch) / (
-            config.width_mm * 1e-3
+            config.actuator.width_mm * 1e-3
         )
     common = dict(
         thickness_mm=values["object_thickness_mm"],
@@ -228,8 +238,8 @@ def _batch_object(shear_modulus_kpa, stiffness, thickness_mm, curvature_per_m, d
                   scales) -> GraspObject:
     """:meth:`GraspObject.from_material` (``stiffness=None``) or :meth:`~GraspObject.from_stiffness` for a batch.
 
-    The same checks and the same formulas (eq. 3.2 in :func:`pneunet_env.physics.units.object_stiffness_from_material`),
-    as array operations instead of a loop over objects; ``ValueError`` names the first bad value.
+    The same checks and the same formula (eq. 3.2, :func:`pneunet_env.physics.contact.winkler_stiffness`), as array
+    operations instead of a loop over objects; ``ValueError`` names the first bad value.
     """
     given = shear_modulus_kpa if stiffness is None else stiffness
     arrays = np.broadcast_arrays(*(np.asarray(a, dtype=float) for a in (
@@ -244,14 +254,11 @@ def _batch_object(shear_modulus_kpa, stiffness, thickness_mm, curvature_per_m, d
         _first_bad(label, given, ~np.isfinite(given) | (given < 0.0), "must be finite and >= 0")
         H = H_mm * 1e-3
         _first_bad("thickness_mm", H_mm, H * kap >= 1.0, "is not below the object's outer radius 1/kappa_obj")
-        # eq. 3.2, in the operation order of units.object_stiffness_from_material (kPa/m, then k~)
-        factor = 1.0 / (1.0 - H * kap) ** 2 - 1.0
-        if stiffness is None:
+        if stiffness is None:  # eq. 3.2 (physics.contact), as array operations
             mu = given
-            k = (2.0 * mu * kap * factor) * 1e-3 * scales.width_mm / scales.shear_modulus_kpa
+            k = winkler_stiffness(mu, H_mm, kap, scales.width_mm, scales.shear_modulus_kpa)
         else:
-            unit = (2.0 * 1.0 * kap * factor) * 1e-3 * scales.width_mm / scales.shear_modulus_kpa
-            mu = given / unit
+            mu = given / winkler_stiffness(1.0, H_mm, kap, scales.width_mm, scales.shear_modulus_kpa)
             k = given
         c = kap * scales.width_mm * 1e-3
         _first_bad("curvature_per_m", kap, c >= np.pi, "gives w kappa_obj >= pi")
@@ -374,74 +381,6 @@ def update_pressure(pressure, action, params: TaskParams):
     a = np.minimum(np.maximum(a, -1.0), 1.0)
     p = np.minimum(np.maximum(pressure + a * params.pressure_step, 0.0), params.pressure_max)
     return p, clipped
-
-
-# ---------------------------------------------------------------------------------------------
-# The solve's result, as the rules read it
-# ---------------------------------------------------------------------------------------------
-
-_STATUS_BY_CODE = np.array(["not solved (inactive)"] + [STATUS_MESSAGES[c] for c in range(max(STATUS_MESSAGES) + 1)],
-                           dtype=object)
-"""Status messages by ``code + 1``: :data:`pneunet_env.physics.solver.STATUS_MESSAGES`, and -1 for an env not solved."""
-
-
-class SolvedState(NamedTuple):
-    """An equilibrium with the attributes of :class:`pneunet_env.physics.solver.Equilibrium` that the task reads.
-
-    Scalars for one environment, ``(N,)`` arrays for a batch (``status`` then an object array of strings).
-    Dimensionless: pressure and traction ``/mu``, lengths ``/w``; see :func:`solved_state`.
-    """
-
-    pressure: Any
-    curvature: Any
-    side_strain: Any
-    top_strain: Any
-    contact_force: Any
-    indentation: Any
-    in_contact: Any
-    volume_change: Any
-    energy: Any
-    gradient_norm: Any
-    min_eigenvalue: Any
-    converged: Any
-    iterations: Any
-    substeps: Any
-    snapped: Any
-    status: Any
-
-
-def solved_state(
-    pressure, kappa, side_strain, volume_change, energy, gradient_norm, min_eigenvalue, iterations, substeps, snapped,
-    status_code, object_stiffness, object_curvature, chamber_height: float,
-) -> SolvedState:
-    """A solve's raw result (:func:`pneunet_env.physics.solver.step_state`'s tuple, or a
-    :class:`pneunet_env.physics.batched.BatchEquilibrium`'s columns) as a :class:`SolvedState`.
-
-    The contact quantities follow :class:`pneunet_env.physics.solver.Equilibrium` exactly: top-wall strain
-    ``e_m = d (1 + e_s) kappa~``; indentation ``delta~ = (kappa~ - kappa~_obj)/(kappa~ kappa~_obj)`` where
-    ``kappa~ > kappa~_obj`` and there is an object (``k~ > 0``), else 0; traction ``F~ = k~ delta~``; in contact
-    where also ``k~ > 0``.
-    ``status_code`` indexes :data:`pneunet_env.physics.solver.STATUS_MESSAGES` (``<= 1``: converged; -1 in a batch: not
-    solved).
-    """
-    if not isinstance(kappa, np.ndarray):  # one environment: plain Python arithmetic, the solver's own
-        kc = object_curvature
-        delta = (kappa - kc) / (kappa * kc) if (kappa > kc and object_stiffness > 0.0) else 0.0
-        return SolvedState(
-            pressure, kappa, side_strain, chamber_height * (1.0 + side_strain) * kappa, object_stiffness * delta,
-            delta, object_stiffness > 0.0 and kappa > kc, volume_change, energy, gradient_norm, min_eigenvalue,
-            status_code <= 1, iterations, substeps, snapped, STATUS_MESSAGES[status_code],
-        )
-    kc = object_curvature
-    above = (kappa > kc) & (np.asarray(object_stiffness) > 0.0)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        delta = np.where(above, (kappa - kc) / (kappa * kc), 0.0)
-    code = np.asarray(status_code)
-    return SolvedState(
-        pressure, kappa, side_strain, chamber_height * (1.0 + side_strain) * kappa, object_stiffness * delta, delta,
-        above, volume_change, energy, gradient_norm, min_eigenvalue,
-        (code <= 1) & (code >= 0), iterations, substeps, snapped, _STATUS_BY_CODE[code + 1],
-    )
 
 
 # ---------------------------------------------------------------------------------------------
@@ -592,35 +531,242 @@ def object_info(obj: GraspObject, thresholds: Thresholds, params: TaskParams) ->
     }
 
 
-def build_info(
-    eq,
-    solve,
-    obj: GraspObject,
-    thresholds: Thresholds,
-    state: TaskState,
-    params: TaskParams,
-    outcome: Outcome | None = None,
-    action_clipped=False,
-    solver_failed=False,
-    static: dict[str, Any] | None = None,
-) -> dict[str, Any]:
-    """The ``info`` dict, from arrays (or scalars): dimensionless values and physical ones.
+# ---------------------------------------------------------------------------------------------
+# The contact (pluggable), the params and the state
+# ---------------------------------------------------------------------------------------------
+
+Contact = Callable[..., Equilibrium]
+"""``contact(kappa~, e_s, p0, p1, obj, params) -> Equilibrium``: the state reached from the equilibrium
+``(kappa~, e_s)`` at command ``p0`` when the command becomes ``p1`` (a pressure for the pneu-net, a jaw closure for
+a rigid gripper), against the object ``obj``; scalars for one env, ``(N,)`` arrays for a batch."""
+
+
+def newton_contact(kappa, side_strain, p0, p1, obj: GraspObject, params: EnvParams) -> Equilibrium:
+    """The pneu-net's quasi-static step for one env: the compiled continuation
+    (:func:`pneunet_env.physics.solver.step_state`) from ``(kappa~, e_s)`` at ``p0`` to ``p1``, without the argument
+    checks of :func:`~pneunet_env.physics.solver.solve_equilibrium` (the pressure comes from :func:`update_pressure`,
+    the object was checked at reset): this is the hot path."""
+    raw = step_state(kappa, side_strain, p0, p1, params.actuator, obj.stiffness, obj.curvature, params.solver)
+    return equilibrium(p1, raw, params.actuator[0], obj.stiffness, obj.curvature)
+
+
+def newton_contact_batch(kappa, side_strain, p0, p1, obj: GraspObject, params: EnvParams, backend: str = "auto",
+                         parallel: bool | None = None) -> Equilibrium:
+    """The pneu-net's quasi-static step for ``(N,)`` envs (:func:`pneunet_env.physics.batched.solve_batch`)."""
+    return solve_batch(kappa, side_strain, p0, p1, obj.stiffness, obj.curvature, params.actuator_params,
+                       params.solver_options, backend=backend, validate=False, parallel=parallel)
+
+
+def free_volume_change(config: EnvConfig) -> float:
+    """The free actuator's chamber volume change ``(V1 - V0)/(w^2 t)`` at ``p_max`` (loaded from rest): the
+    scale of the volume observation."""
+    eq = solve_equilibrium(config.pressure_max, 0.0, 0.02, config.actuator_params, options=config.solver)
+    if not eq.converged:  # pragma: no cover - the free actuator always converges at the defaults
+        raise RuntimeError(f"the free actuator did not converge at p~={config.pressure_max}: {eq.message}")
+    return eq.volume_change
+
+
+class EnvParams(NamedTuple):
+    """Everything a step needs that does not change within an episode: built once from the validated config.
+
+    Attributes:
+        task: the rules' numbers (:class:`TaskParams`); a rigid jaw's has the jaw's travel and step in place of
+            the pressure's.
+        actuator: the dimensionless actuator as the compiled solver takes it
+            (:func:`pneunet_env.physics.solver.params_tuple`).
+        solver: :meth:`SolverOptions.as_tuple <pneunet_env.physics.solver.SolverOptions.as_tuple>`.
+        actuator_params, solver_options: the same, as their validated objects.
+        volume_scale: the free actuator's volume change at ``p_max`` with ``observe_volume``, else ``None``.
+    """
+
+    task: TaskParams
+    actuator: tuple
+    solver: tuple
+    actuator_params: Any
+    solver_options: Any
+    volume_scale: float | None
+
+    @classmethod
+    def from_config(cls, config: EnvConfig) -> EnvParams:
+        scale = free_volume_change(config) if config.task.observe_volume else None
+        return cls(TaskParams.from_config(config), params_tuple(config.actuator_params), config.solver.as_tuple(),
+                   config.actuator_params, config.solver, scale)
+
+
+class EnvState(NamedTuple):
+    """The whole state of one env (scalars) or of a batch (``(N,)`` arrays), as one record with named fields.
+
+    Attributes:
+        command: the controlled quantity, ``p~`` (or a jaw's closure in mm): what the action moves.
+        eq: the quasi-static state reached (:class:`~pneunet_env.physics.solver.Equilibrium`).
+        obj: the episode's object (:class:`~pneunet_env.objects.GraspObject`).
+        thresholds: its damage and slip thresholds (:class:`Thresholds`).
+        task: the rules' memory (:class:`TaskState`).
+    """
+
+    command: Any
+    eq: Equilibrium
+    obj: GraspObject
+    thresholds: Thresholds
+    task: TaskState
+
+
+class Step(NamedTuple):
+    """What :func:`step` returns: the new state, what the env hands out, and what its info is built from."""
+
+    state: EnvState
+    obs: np.ndarray
+    reward: Any
+    terminated: Any
+    truncated: Any
+    solve: Equilibrium  # the step's solve (its diagnostics), even where it failed and the state was kept
+    outcome: Outcome
+    action_clipped: Any
+    solver_failed: Any
+
+
+def reset_state(obj: GraspObject, params: EnvParams, contact: Contact) -> EnvState:
+    """The state at ``reset``: command 0, the actuator at rest (the equilibrium at ``p~ = 0``), the object's
+    thresholds, a fresh task state. Scalars for one object, ``(N,)`` arrays for a batch."""
+    shape = np.shape(obj.stiffness)
+    zero: Any = 0.0 if shape == () else np.zeros(shape)
+    eq = contact(zero, zero, zero, zero, obj, params)
+    return EnvState(0.0 if shape == () else np.zeros(shape), eq, obj, object_thresholds(obj, params.task),
+                    initial_state(None if shape == () else shape))
+
+
+def _keep_where(failed, old: Equilibrium, new: Equilibrium) -> Equilibrium:
+    """``new``, with ``old``'s entries where the solve ``failed`` (the previous state is kept)."""
+    if not isinstance(failed, np.ndarray):
+        return old if failed else new
+    if not failed.any():
+        return new
+    return Equilibrium(*(np.where(failed, a, b) for a, b in zip(old, new, strict=True)))
+
+
+def step(state: EnvState, action, params: EnvParams, contact: Contact) -> Step:
+    """One step of the task, pure: the same function for one env (scalars) and for a batch (``(N,)`` arrays).
+
+    1. the command: ``clip(p + clip(a, -1, 1) dp_max, 0, p_max)`` (:func:`update_pressure`; NaN/inf raise);
+    2. the contact: the quasi-static state at the new command (``contact``); where it did not converge, the
+       previous state and command are kept and the step is flagged ``solver_failed`` (the episode truncates);
+    3. the rules: damage, slip, reward, the episode's end (:func:`transition`);
+    4. the observation (:func:`observation`).
 
     Args:
-        eq: the state's equilibrium: anything with the attributes of :class:`pneunet_env.physics.solver.Equilibrium`
-            (``pressure, curvature, side_strain, top_strain, contact_force, indentation, in_contact,
-            volume_change``), e.g. a :class:`SolvedState`.
-        solve: the step's solve (its diagnostics: ``converged, iterations, substeps, snapped, gradient_norm,
-            min_eigenvalue, status``); the same as ``eq`` unless the solve failed and the state was kept.
-        obj, thresholds: the object and its thresholds.
-        state: the task state after the step.
-        outcome: the step's :class:`Outcome` (``None`` at reset).
-        action_clipped, solver_failed: flags of the step.
+        state: the state before the step.
+        action: one number per env (a float, or an ``(N,)`` array), nominally in ``[-1, 1]``.
+        params: the env's :class:`EnvParams`.
+        contact: the :data:`Contact` (the pneu-net's Newton solve, or a jaw's kinematics).
+    """
+    command, clipped = update_pressure(state.command, action, params.task)
+    prev = state.eq
+    solve = contact(prev.curvature, prev.side_strain, prev.pressure, command, state.obj, params)
+    conv = solve.converged
+    failed = (conv ^ True) if isinstance(conv, np.ndarray) else not conv
+    eq = _keep_where(failed, prev, solve)
+    if isinstance(failed, np.ndarray):
+        command = np.where(failed, state.command, command) if failed.any() else command
+    elif failed:
+        command = state.command
+    out = transition(state.task, eq.contact_force, eq.indentation, eq.in_contact, state.thresholds, failed, params.task)
+    obs = observation(command, eq.volume_change, params.task, params.volume_scale)
+    new = EnvState(command, eq, state.obj, state.thresholds, out.state)
+    return Step(new, obs, out.reward, out.terminated, out.truncated, solve, out, clipped, failed)
+
+
+def _fields(record) -> tuple:
+    if isinstance(record, tuple):
+        return tuple(record)
+    return tuple(getattr(record, f.name) for f in dataclasses.fields(record))
+
+
+def merge(old, idx, new):
+    """A fresh record (NamedTuple or dataclass, nested): ``old`` with entries ``idx`` replaced by ``new``'s.
+
+    Arrays are copied, never changed in place, so a state handed out earlier stays as it was.
+    """
+    out = []
+    for a, b in zip(_fields(old), _fields(new), strict=True):
+        if isinstance(a, tuple) or dataclasses.is_dataclass(a):
+            out.append(merge(a, idx, b))
+        else:
+            c = np.array(a, copy=True)
+            c[idx] = b
+            out.append(c)
+    return type(old)(*out)
+
+
+def autoreset(state: EnvState, idx: np.ndarray, obj: GraspObject, params: EnvParams, contact: Contact) -> EnvState:
+    """``state`` with the envs ``idx`` reset on the objects ``obj`` (``(len(idx),)`` arrays).
+
+    The randomness is passed in, as the objects drawn for those envs (the vector env draws them from each env's
+    own stream: :func:`object_from_uniforms` on its uniforms), so this stays pure.
+    """
+    return merge(state, idx, reset_state(obj, params, contact))
+
+
+# ---------------------------------------------------------------------------------------------
+# Info
+# ---------------------------------------------------------------------------------------------
+
+INFO_LEVELS = ("lean", "full")
+"""``info_level`` of the envs: ``"lean"`` (default) gives :data:`LEAN_KEYS` every step and the object's constants
+at reset; ``"full"`` gives every key of :func:`build_info` every step."""
+
+LEAN_KEYS = (
+    "pressure_kpa", "curvature_per_m", "contact_force_kpa", "indentation_mm", "in_contact",
+    "step", "in_hold", "held", "damaged", "overstressed", "crushed", "dropped", "slipping", "action_clipped",
+    "snapped", "solver_converged", "solver_failed",
+)
+"""The keys of a lean step info: pressure, curvature, contact, the task's flags and the solver's status."""
+
+OBJECT_KEYS = (
+    "object_stiffness", "object_stiffness_kpa_per_mm", "object_shear_modulus_kpa", "object_curvature",
+    "object_curvature_per_m", "object_thickness_mm", "object_density_kg_m3", "object_failure_strain",
+    "failure_traction_kpa", "crush_indentation_mm", "grip_traction_kpa",
+)
+"""The object's constants (:func:`object_info`): in every reset info, and in every step's with ``"full"``."""
+
+
+def build_info(
+    state: EnvState,
+    params: TaskParams,
+    result: Step | None = None,
+    level: str = "lean",
+    static: dict[str, Any] | None = None,
+) -> dict[str, Any]:
+    """The ``info`` dict, from scalars or arrays: physical values (``*_kpa``, ``*_mm``, ``*_per_m``) and flags.
+
+    Args:
+        state: the state after the step (or at reset).
+        params: the task's numbers.
+        result: the step's :class:`Step` (``None`` at reset).
+        level: ``"lean"`` (:data:`LEAN_KEYS`; at reset the object's constants too, :data:`OBJECT_KEYS`) or ``"full"``
+            (every key below, every step).
         static: ``object_info(obj, thresholds, params)``, if the caller keeps it (computed here otherwise).
-            Its values are shared between the calls that pass it: scalars (immutable) in the single env.
+
+    The full info: ``pressure`` / ``pressure_kpa``, ``curvature`` (``w kappa``) / ``curvature_per_m``,
+    ``side_strain``, ``top_strain``, ``contact_force`` (``F~``) / ``contact_force_kpa``, ``indentation``
+    (``delta~``) / ``indentation_mm``, ``volume_change`` / ``volume_change_mm3``, ``in_contact``; the object's
+    constants (:data:`OBJECT_KEYS`); ``grip_ratio`` (``F`` over the grip traction, >= 1 holds), ``damage_ratio``
+    (>= 1 damages), ``peak_contact_force_kpa``; the task's ``step``, ``in_hold``, ``damaged``, ``overstressed``,
+    ``crushed``, ``slipping``, ``dropped``, ``held``, ``action_clipped``; the solver's ``snapped``,
+    ``solver_converged``, ``solver_failed``, ``solver_iterations``, ``solver_substeps``, ``solver_status`` (its
+    message), ``gradient_norm``, ``min_eigenvalue``.
 
     Every array value is freshly computed (no buffer is reused between calls), unless ``static`` holds arrays.
     """
+    if level not in INFO_LEVELS:
+        raise ValueError(f"info_level must be one of {INFO_LEVELS}, got {level!r}")
+    eq, obj, thresholds, task_state = state.eq, state.obj, state.thresholds, state.task
+    solve = eq if result is None else result.solve
+    outcome = None if result is None else result.outcome
+    action_clipped = False if result is None else result.action_clipped
+    solver_failed = False if result is None else result.solver_failed
+    if level == "lean":
+        return _lean_info(eq, solve, obj, thresholds, task_state, params, outcome, action_clipped, solver_failed,
+                          static)
     mu, w = params.shear_modulus_kpa, params.width_mm
     F = eq.contact_force
     in_contact = eq.in_contact
@@ -651,16 +797,16 @@ def build_info(
         **static,
         "grip_ratio": _ratio(F, thresholds.grip_traction),
         "damage_ratio": damage_ratio,
-        "peak_contact_force_kpa": state.peak_force * mu,
-        "step": state.step,
-        "damaged": state.damaged,
-        "dropped": state.dropped,
+        "peak_contact_force_kpa": task_state.peak_force * mu,
+        "step": task_state.step,
+        "damaged": task_state.damaged,
+        "dropped": task_state.dropped,
         "snapped": solve.snapped,
         "solver_converged": solve.converged,
         "solver_failed": solver_failed,
         "solver_iterations": solve.iterations,
         "solver_substeps": solve.substeps,
-        "solver_status": solve.status,
+        "solver_status": status_message(solve.status),
         "gradient_norm": solve.gradient_norm,
         "min_eigenvalue": solve.min_eigenvalue,
         "action_clipped": action_clipped,
@@ -670,4 +816,35 @@ def build_info(
         "slipping": False if outcome is None else outcome.slipping,
         "held": False if outcome is None else outcome.held,
     }
+    return info
+
+
+def _lean_info(eq, solve, obj, thresholds, task_state, params, outcome, action_clipped, solver_failed, static):
+    mu, w = params.shear_modulus_kpa, params.width_mm
+    in_contact = eq.in_contact
+    if isinstance(in_contact, np.ndarray):
+        delta = np.where(in_contact, eq.indentation, 0.0)
+    else:
+        delta = eq.indentation if in_contact else 0.0
+    info: dict[str, Any] = {
+        "pressure_kpa": eq.pressure * mu,
+        "curvature_per_m": eq.curvature / (w * 1e-3),
+        "contact_force_kpa": eq.contact_force * mu,
+        "indentation_mm": delta * w,
+        "in_contact": in_contact,
+        "step": task_state.step,
+        "in_hold": False if outcome is None else outcome.in_hold,
+        "held": False if outcome is None else outcome.held,
+        "damaged": task_state.damaged,
+        "overstressed": False if outcome is None else outcome.overstressed,
+        "crushed": False if outcome is None else outcome.crushed,
+        "dropped": task_state.dropped,
+        "slipping": False if outcome is None else outcome.slipping,
+        "action_clipped": action_clipped,
+        "snapped": solve.snapped,
+        "solver_converged": solve.converged,
+        "solver_failed": solver_failed,
+    }
+    if outcome is None:  # at reset: the object's constants
+        info.update(object_info(obj, thresholds, params) if static is None else static)
     return info

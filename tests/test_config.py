@@ -9,39 +9,42 @@ import pytest
 import yaml
 
 import pneunet_env  # noqa: F401  (registers the environment)
-from pneunet_env.config import DEFAULT_CONFIG_PATH, RANGE_FIELDS, EnvConfig, load_config
+from pneunet_env.config import DEFAULT_CONFIG_PATH, RANGE_FIELDS, SECTIONS, EnvConfig, load_config
 from pneunet_env.physics.solver import SolverOptions
 from pneunet_env.physics.units import PhysicalActuator
 
 
 def test_default_yaml_equals_defaults_and_lists_every_key():
     data = yaml.safe_load(DEFAULT_CONFIG_PATH.read_text())
-    assert list(data) == list(EnvConfig.keys()), "default.yaml must list every key, in field order"
+    assert list(data) == list(SECTIONS), "default.yaml must list every section, in order"
+    for section, cls in SECTIONS.items():
+        names = [f.name for f in dataclasses.fields(cls)]
+        assert list(data[section]) == names, f"section {section}: every key, in order"
     assert EnvConfig.from_yaml(DEFAULT_CONFIG_PATH) == EnvConfig()
     assert load_config(DEFAULT_CONFIG_PATH) == EnvConfig()
 
 
 def test_default_yaml_comments_every_key():
     for line in DEFAULT_CONFIG_PATH.read_text().splitlines():
-        if line and not line.startswith("#") and ":" in line:
+        if line.startswith(" ") and ":" in line:
             assert "#" in line, f"default.yaml key without a comment: {line!r}"
 
 
 def test_defaults_are_the_papers():
     cfg = EnvConfig()
-    assert cfg.physical_actuator == PhysicalActuator()
+    assert cfg.actuator == PhysicalActuator()
     assert cfg.actuator_params == PhysicalActuator().to_dimensionless()
-    assert cfg.solver_options == SolverOptions()
+    assert cfg.solver == SolverOptions()
     assert cfg.pressure_max == pytest.approx(1.2)
-    assert cfg.episode_steps == cfg.squeeze_steps + cfg.hold_steps == 100
+    assert cfg.episode_steps == cfg.task.squeeze_steps + cfg.task.hold_steps == 100
 
 
 def test_default_stiffness_range_covers_the_papers_regimes():
     from pneunet_env.objects import stiffness_per_modulus
 
     cfg = EnvConfig()
-    unit = stiffness_per_modulus(cfg.object_thickness_mm[0], cfg.object_curvature_per_m[0], cfg.scales)
-    lo, hi = (m * unit for m in cfg.object_shear_modulus_kpa)
+    unit = stiffness_per_modulus(cfg.objects.object_thickness_mm[0], cfg.objects.object_curvature_per_m[0], cfg.scales)
+    lo, hi = (m * unit for m in cfg.objects.object_shear_modulus_kpa)
     assert lo <= 1e-5 and hi >= 1e-1
 
 
@@ -80,7 +83,11 @@ def test_unknown_key_in_yaml_is_named(tmp_path):
         ("side_thickness_mm", 6.0, "side_thickness"),
         ("gent_limit", 0.0, "gent_limit"),
         ("solver_min_step", 1.0, "min_step"),
-        ("render_width", 8, "render_width"),
+        ("render_width", 8, "render.width"),
+        ("render_width", 10**6, "render.width"),
+        ("max_iter", 1.5, "max_iter"),
+        ("solver_max_iter", 1e300, "max_iter"),
+        ("terminate_on_slip", 1, "terminate_on_slip"),
     ],
 )
 def test_invalid_values_are_named(key, value, match):
@@ -90,26 +97,27 @@ def test_invalid_values_are_named(key, value, match):
 
 def test_ranges_accept_a_single_number_and_round_trip():
     cfg = load_config(object_thickness_mm=20, object_shear_modulus_kpa=[1, 2])
-    assert cfg.object_thickness_mm == (20.0, 20.0)
-    assert cfg.object_shear_modulus_kpa == (1.0, 2.0)
-    assert EnvConfig(**cfg.to_dict()) == cfg
+    assert cfg.objects.object_thickness_mm == (20.0, 20.0)
+    assert cfg.objects.object_shear_modulus_kpa == (1.0, 2.0)
+    assert load_config(cfg.to_dict()) == cfg
     assert load_config(cfg) == cfg
-    assert all(isinstance(getattr(cfg, n), tuple) for n in RANGE_FIELDS)
+    assert all(isinstance(getattr(cfg.objects, n), tuple) for n in RANGE_FIELDS)
 
 
 def test_precedence_defaults_then_config_then_overrides(tmp_path):
     path = tmp_path / "c.yaml"
     path.write_text("hold_steps: 10\nsqueeze_steps: 5\n")
     cfg = load_config(path, hold_steps=7)
-    assert (cfg.squeeze_steps, cfg.hold_steps, cfg.max_pressure_kpa) == (5, 7, EnvConfig().max_pressure_kpa)
-    assert EnvConfig().replace(hold_steps=3).hold_steps == 3
+    t = cfg.task
+    assert (t.squeeze_steps, t.hold_steps, t.max_pressure_kpa) == (5, 7, EnvConfig().task.max_pressure_kpa)
+    assert EnvConfig().replace(hold_steps=3).task.hold_steps == 3
     with pytest.raises(ValueError, match="'nope'"):
         EnvConfig().replace(nope=1)
 
 
 def test_config_is_frozen():
     with pytest.raises(dataclasses.FrozenInstanceError):
-        EnvConfig().hold_steps = 3  # type: ignore[misc]
+        EnvConfig().task.hold_steps = 3  # type: ignore[misc]
 
 
 def test_gym_make_takes_path_dict_and_overrides(tmp_path):
@@ -117,11 +125,11 @@ def test_gym_make_takes_path_dict_and_overrides(tmp_path):
     path.write_text("max_pressure_kpa: 40.0\nobserve_volume: true\n")
     env = gym.make("PneuNetGrasp-v0", config=str(path), max_pressure_step_kpa=2.0)
     cfg = env.unwrapped.config
-    assert (cfg.max_pressure_kpa, cfg.max_pressure_step_kpa, cfg.observe_volume) == (40.0, 2.0, True)
+    assert (cfg.task.max_pressure_kpa, cfg.task.max_pressure_step_kpa, cfg.task.observe_volume) == (40.0, 2.0, True)
     assert env.observation_space.shape == (2,)
     env.close()
     env = gym.make("PneuNetGrasp-v0", config={"hold_steps": 5})
-    assert env.unwrapped.config.hold_steps == 5
+    assert env.unwrapped.config.task.hold_steps == 5
     env.close()
     with pytest.raises(ValueError, match="'hold_step'"):
         gym.make("PneuNetGrasp-v0", hold_step=5)
@@ -143,3 +151,37 @@ def test_non_mapping_yaml_is_rejected(tmp_path):
         load_config(path)
     with pytest.raises(ValueError, match="cannot read"):
         load_config(tmp_path / "missing.yaml")
+
+
+def test_nested_and_flat_keys_are_one_config(tmp_path):
+    nested = load_config({"task": {"max_pressure_kpa": 40.0}, "render": {"width": 64}, "solver": {"gtol": 1e-10}})
+    flat = load_config(max_pressure_kpa=40.0, render_width=64, solver_gtol=1e-10)
+    assert nested == flat == load_config(max_pressure_kpa=40.0, width=64, gtol=1e-10)
+    assert nested.task.max_pressure_kpa == 40.0 and nested.render.width == 64 and nested.solver.gtol == 1e-10
+    path = tmp_path / "nested.yaml"
+    path.write_text("task:\n  hold_steps: 7\nobjects:\n  object_thickness_mm: 12\n")
+    cfg = load_config(path)
+    assert cfg.task.hold_steps == 7 and cfg.objects.object_thickness_mm == (12.0, 12.0)
+    with pytest.raises(ValueError, match="'hold_steps' belongs to section 'task'"):
+        load_config({"render": {"hold_steps": 3}})
+    with pytest.raises(ValueError, match="section 'task' must be a mapping"):
+        load_config({"task": 3})
+    # field names are unique across sections, so every flat key means one thing
+    names = [f.name for cls in SECTIONS.values() for f in dataclasses.fields(cls)]
+    assert len(names) == len(set(names))
+
+
+def test_sections_are_the_objects_their_consumers_take():
+    from pneunet_env.task import TaskParams
+
+    cfg = EnvConfig()
+    assert isinstance(cfg.solver, SolverOptions) and isinstance(cfg.actuator, PhysicalActuator)
+    tp = TaskParams.from_config(cfg)
+    assert tp.squeeze_steps == cfg.task.squeeze_steps and tp.pressure_max == pytest.approx(1.2)
+
+
+def test_malformed_yaml_names_the_file(tmp_path):
+    path = tmp_path / "bad.yaml"
+    path.write_text("task: [1, 2\n")
+    with pytest.raises(ValueError, match="bad.yaml"):
+        load_config(path)

@@ -10,6 +10,7 @@ import pytest
 from pneunet_env import task
 from pneunet_env.config import EnvConfig, load_config
 from pneunet_env.objects import GraspObject, stiffness_per_modulus
+from pneunet_env.physics.solver import Equilibrium
 from pneunet_env.physics.units import PAPER_MODULUS_PER_STIFFNESS_PA, object_stiffness_from_material
 
 CFG = EnvConfig()
@@ -64,9 +65,9 @@ def test_invalid_objects_are_named(kwargs, match):
 def test_thresholds_in_physical_units():
     obj = GraspObject.from_material(10.0, 10.0, 4.0, density_kg_m3=1000.0, failure_strain=0.3)
     thr = task.object_thresholds(obj, TP)
-    mu = CFG.shear_modulus_kpa
+    mu = CFG.actuator.shear_modulus_kpa
     assert thr.failure_traction * mu == pytest.approx(3 * 0.3 * 10.0)  # kPa: eps_f E_obj
-    assert thr.crush_indentation * CFG.width_mm == pytest.approx(10.0)  # mm: H
+    assert thr.crush_indentation * CFG.actuator.width_mm == pytest.approx(10.0)  # mm: H
     # rho g H / (2 mu_f) = 1000 * 9.81 * 0.01 / (2 * 0.5) Pa = 98.1 Pa
     assert thr.grip_traction * mu * 1e3 == pytest.approx(98.1)
 
@@ -79,11 +80,11 @@ def test_sample_object_is_deterministic_and_within_ranges():
     batch = task.sample_object(np.random.default_rng(4), cfg, size=500)
     for name, field in [("object_shear_modulus_kpa", "shear_modulus_kpa"), ("object_thickness_mm", "thickness_mm"),
                         ("object_density_kg_m3", "density_kg_m3")]:
-        lo, hi = getattr(cfg, name)
+        lo, hi = getattr(cfg.objects, name)
         v = getattr(batch, field)
         assert v.shape == (500,) and np.all(v >= lo) and np.all(v <= hi)
     # log-uniform modulus: about half the draws below the geometric mean
-    gm = math.sqrt(cfg.object_shear_modulus_kpa[0] * cfg.object_shear_modulus_kpa[1])
+    gm = math.sqrt(cfg.objects.object_shear_modulus_kpa[0] * cfg.objects.object_shear_modulus_kpa[1])
     assert 0.4 < np.mean(batch.shear_modulus_kpa < gm) < 0.6
 
 
@@ -256,28 +257,28 @@ def test_observation_shapes_and_freshness():
     assert task.observation(0.6, 3.0, TP) is not o
 
 
-def test_build_info_batch_equals_scalars():
-    from types import SimpleNamespace
-
+@pytest.mark.parametrize("level", task.INFO_LEVELS)
+def test_build_info_batch_equals_scalars(level):
     rng = np.random.default_rng(2)
     n = 20
-    eq = SimpleNamespace(
+    obj = GraspObject.from_material(rng.uniform(0.1, 100, n), 10.0, 4.0)
+    eq = Equilibrium(
         pressure=rng.uniform(0, 1.2, n), curvature=rng.uniform(0, 0.5, n), side_strain=rng.uniform(0, 0.5, n),
         top_strain=rng.uniform(0, 0.5, n), contact_force=rng.uniform(0, 1e-2, n), indentation=rng.uniform(0, 3, n),
-        in_contact=rng.random(n) < 0.5, volume_change=rng.uniform(0, 10, n), snapped=rng.random(n) < 0.5,
-        converged=np.ones(n, bool), iterations=rng.integers(0, 10, n), substeps=rng.integers(0, 10, n),
-        status=np.array(["converged"] * n), gradient_norm=rng.uniform(0, 1e-12, n), min_eigenvalue=rng.uniform(1, 2, n),
+        in_contact=rng.random(n) < 0.5, volume_change=rng.uniform(0, 10, n), energy=rng.uniform(-1, 0, n),
+        gradient_norm=rng.uniform(0, 1e-12, n), min_eigenvalue=rng.uniform(1, 2, n), converged=np.ones(n, bool),
+        iterations=rng.integers(0, 10, n), substeps=rng.integers(0, 10, n), snapped=rng.random(n) < 0.5,
+        status=np.zeros(n, np.int64), object_stiffness=obj.stiffness, object_curvature=obj.curvature,
     )
-    obj = GraspObject.from_material(rng.uniform(0.1, 100, n), 10.0, 4.0)
     thr = task.object_thresholds(obj, TP)
-    st = task.initial_state((n,))
-    info = task.build_info(eq, eq, obj, thr, st, TP)
+    state = task.EnvState(eq.pressure, eq, obj, thr, task.initial_state((n,)))
+    info = task.build_info(state, TP, None, level)
     for i in range(n):
-        eqi = SimpleNamespace(**{k: v[i] for k, v in vars(eq).items()})
+        eqi = Equilibrium(*(v[i].item() for v in eq))
         obji = GraspObject.from_material(obj.shear_modulus_kpa[i], 10.0, 4.0)
         thri = task.object_thresholds(obji, TP)
-        one = task.build_info(eqi, eqi, obji, thri, task.initial_state(), TP)
+        one = task.build_info(task.EnvState(eqi.pressure, eqi, obji, thri, task.initial_state()), TP, None, level)
         assert set(one) == set(info)
         for key, value in one.items():
             assert np.ravel(info[key])[i if np.ndim(info[key]) else 0] == pytest.approx(value), key
-    assert np.all(info["indentation"][~eq.in_contact] == 0.0)
+    assert np.all(info["indentation_mm"][~eq.in_contact] == 0.0)

@@ -44,7 +44,7 @@ def workload(n: int, dp: float, seed: int = 0) -> dict[str, np.ndarray]:
     p0 = rng.uniform(0.0, P_MAX, n)
     start = batched.solve_batch(np.zeros(n), np.zeros(n), 0.0, p0, kobj, KO)
     p1 = np.clip(p0 + rng.uniform(-dp, dp, n), 0.0, P_MAX)
-    return {"kappa": start.kappa, "side_strain": start.side_strain, "p0": p0, "p1": p1, "kobj": kobj}
+    return {"kappa": start.curvature, "side_strain": start.side_strain, "p0": p0, "p1": p1, "kobj": kobj}
 
 
 def count_evaluations(w: dict[str, np.ndarray], n: int) -> np.ndarray:

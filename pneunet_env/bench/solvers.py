@@ -41,12 +41,12 @@ from pathlib import Path
 
 import numpy as np
 
+from pneunet_env.bench.models import AUTO_TOLERANCE, equilibrium_for_model
 from pneunet_env.physics import mechanics
 from pneunet_env.physics._jit import HAVE_NUMBA
-from pneunet_env.physics.linear import LinearModel
-from pneunet_env.physics.models import AUTO_TOLERANCE, equilibrium_for_model, linear_state
+from pneunet_env.physics.linear import LinearModel, linear_reach, linear_state
 from pneunet_env.physics.params import ActuatorParams
-from pneunet_env.physics.solver import minimise_state, solve_equilibrium
+from pneunet_env.physics.solver import Equilibrium, minimise_state, solve_equilibrium
 
 __all__ = [
     "CORRECT_TOL",
@@ -275,16 +275,16 @@ class PackageMethod(Method):
         return (float(x[0]), float(x[1])), float(p)
 
     def step(self, memo, p, k, ko, params):
-        if isinstance(memo, tuple):
-            eq = solve_equilibrium(float(p), k, ko, params, initial=memo[0], initial_pressure=memo[1])
-        else:
+        if memo is None or isinstance(memo, Equilibrium):  # (Equilibrium is a tuple too: test it first)
             eq = solve_equilibrium(float(p), k, ko, params, initial=memo)
+        else:  # warm(): a state and the pressure it is in equilibrium at
+            eq = solve_equilibrium(float(p), k, ko, params, initial=memo[0], initial_pressure=memo[1])
         # Newton iterations over all sub-steps (each is one evaluation of energy, gradient and Hessian).
-        return np.array(eq.state), eq.iterations, eq.status + (" (snapped)" if eq.snapped else ""), eq
+        return np.array(eq.state), eq.iterations, eq.message + (" (snapped)" if eq.snapped else ""), eq
 
 
 class AutoMethod(Method):
-    """:func:`pneunet_env.physics.models.equilibrium_for_model` with ``model="auto"``, from the previous equilibrium."""
+    """:func:`pneunet_env.bench.models.equilibrium_for_model` with ``model="auto"``, from the previous equilibrium."""
 
     kind = "model"
 
@@ -296,8 +296,9 @@ class AutoMethod(Method):
         return solve_equilibrium(float(p), k, ko, params, initial=(float(x[0]), float(x[1])))
 
     def step(self, memo, p, k, ko, params):
-        eq = equilibrium_for_model("auto", float(p), k, ko, params, previous=memo, tolerance=self.tolerance)
-        return np.array(eq.state), (eq.iterations if eq.model == "full" else 1), eq.model, eq
+        ans = equilibrium_for_model("auto", float(p), k, ko, params, previous=memo, tolerance=self.tolerance)
+        eq = ans.equilibrium
+        return np.array(eq.state), (eq.iterations if ans.model == "full" else 1), ans.model, eq
 
 
 class LinearMethod(Method):
@@ -614,7 +615,6 @@ def _auto_sweep(scenes: list[Scene], refs: dict, repeats: int, progress: bool) -
     Times are the fastest of ``max(repeats, 5)`` passes, ``full`` and ``auto`` passes interleaved so that both
     see the same machine load.
     """
-    from pneunet_env.physics.models import linear_reach
     from pneunet_env.physics.solver import load_path
 
     tolerances = sorted({1e-5, 1e-4, 1e-3, 1e-2, AUTO_TOLERANCE})

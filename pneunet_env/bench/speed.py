@@ -114,9 +114,9 @@ def _time_steps(env, actions, acc: _Accuracy | None) -> np.ndarray:
         t0 = clock()
         out = step(a)
         times[i] = clock() - t0
-        if acc is not None:
-            info = out[4]
-            acc.add(info["gradient_norm"], info["solver_converged"])
+        if acc is not None:  # the accepted state's diagnostics (the lean info has no gradient norm)
+            eq = env.unwrapped.state.eq
+            acc.add(eq.gradient_norm, eq.converged)
         if out[2] or out[3]:
             env.reset()
     return times
@@ -194,17 +194,20 @@ def bench_vector(num_envs: tuple[int, ...], env_steps: int, min_steps: int, repe
             for name, env, acts in (("PneuNetGrasp-v0", pn, pn_actions), ("CartPole-v1", cp, cp_actions)):
                 env.reset(seed=seed + r)
                 env.step(acts[0])  # warm-up step (numba's parallel loop starts its threads)
-                collect = [] if (name == "PneuNetGrasp-v0" and r == 0 and acc is not None) else None
-                dt = _vector_run(env, acts, collect)
+                dt = _vector_run(env, acts, None)
                 rates[name].append(n * steps / dt)
-                if collect:
-                    for gn, conv, final in collect:
-                        if final is None:
-                            acc.add(gn, conv)
-                        else:  # the ended episodes' step: its solve's diagnostics are in final_info
-                            done = final["_gradient_norm"]
-                            acc.add(np.where(done, final["gradient_norm"], gn),
-                                    np.where(done, final["solver_converged"], conv))
+        if acc is not None:  # the same steps again, untimed, with the full info (its solver diagnostics)
+            full = gym.make_vec("PneuNetGrasp-v0", num_envs=n, backend=backend, info_level="full")
+            full.reset(seed=seed)
+            collect: list = []
+            _vector_run(full, pn_actions, collect)
+            full.close()
+            for gn, conv, final in collect:
+                if final is None:
+                    acc.add(gn, conv)
+                else:  # the ended episodes' step: its solve's diagnostics are in final_info
+                    done = final["_gradient_norm"]
+                    acc.add(np.where(done, final["gradient_norm"], gn), np.where(done, final["solver_converged"], conv))
         state_bytes = pn.unwrapped.state_nbytes()
         pn.close()
         cp.close()
@@ -286,7 +289,7 @@ def bench_solves(calls: int, batch_n: int, seed: int = 0, backend: str = "auto",
     times = []
     for _ in range(3):
         t0 = time.perf_counter()
-        res = solve_batch(start.kappa, start.side_strain, p0, p1, kb, ko, backend=backend, validate=False)
+        res = solve_batch(start.curvature, start.side_strain, p0, p1, kb, ko, backend=backend, validate=False)
         times.append(time.perf_counter() - t0)
     if acc is not None:
         acc.add(np.array(gns), np.array(conv))

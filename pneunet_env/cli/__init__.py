@@ -18,7 +18,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "demo": ("pneunet_env.cli.demo", "main job: evaluate the scripted pressure ramp across object stiffnesses"),
     "solve": ("pneunet_env.cli.solve", "print a quasi-static loading path for one object"),
     "render": ("pneunet_env.cli.render", "save rendered frames of an episode as PNG"),
-    "figures": ("pneunet_env.paper.figures", "regenerate the paper's figures (PNG + CSV) and check its statements"),
+    "figures": ("pneunet_env.paper.command", "regenerate the paper's figures (PNG + CSV) and check its statements"),
     "bench speed": ("pneunet_env.bench.speed", "speed benchmark against CartPole (table, JSON, PNG)"),
     "bench solvers": ("pneunet_env.bench.solvers", "solver study: speed vs accuracy, stability map"),
     "evaluate": ("agents.evaluate", "evaluate policies over a stiffness grid (table, JSON, PNGs)"),

@@ -70,8 +70,8 @@ def run(args: argparse.Namespace) -> int:
         cfg = load_config(args.config)
         specs = list(args.policy or DEFAULT_POLICIES)
         for t in args.targets_kpa:
-            if not 0.0 <= t <= cfg.max_pressure_kpa:
-                raise ValueError(f"--targets-kpa: {t} is outside [0, max_pressure_kpa = {cfg.max_pressure_kpa}]")
+            if not 0.0 <= t <= cfg.task.max_pressure_kpa:
+                raise ValueError(f"--targets-kpa: {t} is outside [0, max_pressure_kpa = {cfg.task.max_pressure_kpa}]")
             specs.append(f"ramp:target_kpa={t:g},steps={args.ramp_steps}")
         entries = [make_policy(s, cfg) for s in specs]
     except ValueError as exc:
@@ -79,7 +79,8 @@ def run(args: argparse.Namespace) -> int:
     edges = np.logspace(math.log10(args.k_min), math.log10(args.k_max), args.bins + 1)
     draws = [edges[b] * (edges[b + 1] / edges[b]) ** np.random.default_rng([args.seed, b]).random(args.episodes)
              for b in range(args.bins)]
-    unit_mu = float(stiffness_per_modulus(np.mean(cfg.object_thickness_mm), np.mean(cfg.object_curvature_per_m),
+    oc = cfg.objects
+    unit_mu = float(stiffness_per_modulus(np.mean(oc.object_thickness_mm), np.mean(oc.object_curvature_per_m),
                                           cfg.scales))
     t0 = time.perf_counter()
     bar = _progress(len(entries) * args.bins * args.episodes)
@@ -102,12 +103,12 @@ def run(args: argparse.Namespace) -> int:
     elapsed = time.perf_counter() - t0
 
     main = entries[0]
-    print(f"PneuNetGrasp-v0 demo: blind grasps of objects from gels to elastomers; {cfg.squeeze_steps} squeeze + "
-          f"{cfg.hold_steps} hold steps; {args.episodes} objects per bin, the same for every policy")
-    print(f"object: H = {_fmt(cfg.object_thickness_mm)} mm, kappa_obj = {_fmt(cfg.object_curvature_per_m)} /m, "
-          f"rho = {_fmt(cfg.object_density_kg_m3)} kg/m^3, failure strain {_fmt(cfg.object_failure_strain)}; "
-          f"friction {cfg.friction_coefficient:g}, {cfg.grip_faces} faces")
-    print(f"damage: traction > 3 eps_f mu_obj, or indentation > {cfg.crush_fraction:g} H;  "
+    print(f"PneuNetGrasp-v0 demo: blind grasps of objects from gels to elastomers; {cfg.task.squeeze_steps} squeeze + "
+          f"{cfg.task.hold_steps} hold steps; {args.episodes} objects per bin, the same for every policy")
+    print(f"object: H = {_fmt(oc.object_thickness_mm)} mm, kappa_obj = {_fmt(oc.object_curvature_per_m)} /m, "
+          f"rho = {_fmt(oc.object_density_kg_m3)} kg/m^3, failure strain {_fmt(oc.object_failure_strain)}; "
+          f"friction {cfg.task.friction_coefficient:g}, {cfg.task.grip_faces} faces")
+    print(f"damage: traction > 3 eps_f mu_obj, or indentation > {cfg.task.crush_fraction:g} H;  "
           "slip (hold phase): traction < rho g H / (faces mu_f)")
     others = entries[1:]
     print(f"\n{main.name}: {main.label}")

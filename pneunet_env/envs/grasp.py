@@ -1,8 +1,12 @@
-"""``PneuNetGrasp-v0``: a pneu-net actuator grasps an object of unknown stiffness, blind."""
+"""``PneuNetGrasp-v0``: a pneu-net actuator grasps an object of unknown stiffness, blind.
+
+A thin shell around the pure step of :mod:`pneunet_env.task` (:func:`~pneunet_env.task.step` on scalars, with the
+Newton contact): this module holds the Gymnasium API, the spaces and the rendering hook, nothing of the physics
+or the rules.
+"""
 
 from __future__ import annotations
 
-import functools
 from typing import Any
 
 import gymnasium as gym
@@ -11,19 +15,10 @@ from gymnasium import spaces
 
 from pneunet_env import task
 from pneunet_env.config import EnvConfig, load_config
-from pneunet_env.physics.params import ActuatorParams, check_object
-from pneunet_env.physics.solver import Equilibrium, SolverOptions, params_tuple, solve_equilibrium, step_state
+from pneunet_env.physics.params import check_object
+from pneunet_env.physics.solver import Equilibrium
 
-__all__ = ["PneuNetGraspEnv", "free_volume_change"]
-
-
-@functools.lru_cache(maxsize=32)
-def free_volume_change(params: ActuatorParams, pressure: float, options: SolverOptions) -> float:
-    """The free actuator's chamber volume change ``(V1 - V0)/(w^2 t)`` at ``pressure`` (loaded from rest)."""
-    eq = solve_equilibrium(pressure, 0.0, 0.02, params, options=options)
-    if not eq.converged:  # pragma: no cover - the free actuator always converges at the defaults
-        raise RuntimeError(f"the free actuator did not converge at p~={pressure}: {eq.status}")
-    return eq.volume_change
+__all__ = ["PneuNetGraspEnv", "observation_space"]
 
 
 class PneuNetGraspEnv(gym.Env):
@@ -100,34 +95,31 @@ class PneuNetGraspEnv(gym.Env):
     * **Truncation**: the hold phase ends (``squeeze_steps + hold_steps`` = 100 steps; this is the
       registered ``max_episode_steps``). A solve that fails to converge keeps the previous state and
       truncates, with ``info["solver_failed"]`` (it has never happened in testing).
+
+    ## Version History
+
+    * v0: the paper's object (a 250 mm ring, 10 mm thick) with its shear modulus log-uniform in 0.1-1500 kPa.
     * ``info["is_success"]`` is set on the last step of every episode: held to the end, intact.
 
     ## Arguments
 
-    ``gym.make("PneuNetGrasp-v0", render_mode=None, config=None, **overrides)``: ``config`` is ``None``
-    (defaults), a dict, an :class:`~pneunet_env.config.EnvConfig` or a YAML path; ``overrides`` are config
-    keys (``configs/env/default.yaml`` lists them all, with units). An unknown key or an invalid value
-    raises ``ValueError`` naming it. If the config changes the episode length, also pass
-    ``max_episode_steps=`` (the registered time limit is the default 100 steps). ``model="full"``
-    (default), ``"linear"`` or ``"auto"`` picks the model a step solves (:mod:`pneunet_env.physics.models`):
-    ``auto`` uses the linearised model (supplement eqs. 15-17) only where its estimated state error is
-    below ``1e-3``; the solver study found it saves no time at this model's size, so ``full`` stays the default.
+    ``gym.make("PneuNetGrasp-v0", render_mode=None, config=None, info_level="lean", **overrides)``: ``config``
+    is ``None`` (defaults), a dict (nested by section or flat), an :class:`~pneunet_env.config.EnvConfig` or a
+    YAML path; ``overrides`` are config keys (``configs/env/default.yaml`` lists them all, with units). An
+    unknown key or an invalid value raises ``ValueError`` naming it. If the config changes the episode length,
+    also pass ``max_episode_steps=`` (the registered time limit is the default 100 steps). ``info_level``:
+    see Info.
 
     ## Info
 
-    Dimensionless (the model's units: pressure and traction ``/mu``, lengths ``/w``) and physical:
-    ``pressure`` / ``pressure_kpa``, ``curvature`` (``w kappa``) / ``curvature_per_m``, ``side_strain``,
-    ``top_strain``, ``contact_force`` (``F~``) / ``contact_force_kpa``, ``indentation`` (``delta~``) /
-    ``indentation_mm``, ``volume_change`` / ``volume_change_mm3``, ``in_contact``; the object's
-    ``object_stiffness`` (``k~``), ``object_stiffness_kpa_per_mm``, ``object_shear_modulus_kpa``,
-    ``object_curvature`` / ``object_curvature_per_m``, ``object_thickness_mm``, ``object_density_kg_m3``,
-    ``object_failure_strain``; its thresholds ``failure_traction_kpa``, ``crush_indentation_mm``,
-    ``grip_traction_kpa``, and ``grip_ratio`` (``F`` over the grip traction, >= 1 holds), ``damage_ratio``
-    (>= 1 damages), ``peak_contact_force_kpa``; the task's ``step``, ``in_hold``, ``damaged``,
-    ``overstressed``, ``crushed``, ``slipping``, ``dropped``, ``held``, ``action_clipped``; the solver's
-    ``snapped`` (a fold was crossed), ``solver_converged``, ``solver_failed``, ``solver_iterations``,
-    ``solver_substeps``, ``solver_status``, ``gradient_norm``, ``min_eigenvalue``; and ``is_success`` at
-    the episode's end.
+    ``info_level="lean"`` (default): every step gives the pressure, curvature and contact in physical units
+    (``pressure_kpa``, ``curvature_per_m``, ``contact_force_kpa``, ``indentation_mm``, ``in_contact``), the task's
+    flags (``step``, ``in_hold``, ``held``, ``damaged``, ``overstressed``, ``crushed``, ``dropped``, ``slipping``,
+    ``action_clipped``) and the solver's status (``snapped``, ``solver_converged``, ``solver_failed``); the reset
+    info adds the object's constants (``object_stiffness`` ``k~``, ``object_shear_modulus_kpa``, ... and its
+    thresholds: :data:`pneunet_env.task.OBJECT_KEYS`). ``info_level="full"`` gives every key of
+    :func:`pneunet_env.task.build_info` every step (44: the dimensionless state, the object, the thresholds'
+    ratios, the solver's diagnostics). ``is_success`` is added on an episode's last step.
 
     ## Rendering
 
@@ -140,75 +132,37 @@ class PneuNetGraspEnv(gym.Env):
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 20}
 
-    def __init__(self, render_mode: str | None = None, config: Any = None, **overrides: Any) -> None:
+    def __init__(self, render_mode: str | None = None, config: Any = None, info_level: str = "lean",
+                 **overrides: Any) -> None:
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
+        if info_level not in task.INFO_LEVELS:
+            raise ValueError(f"info_level must be one of {task.INFO_LEVELS}, got {info_level!r}")
         self.config: EnvConfig = load_config(config, **overrides)
         self.render_mode = render_mode
-        cfg = self.config
-        self._params = cfg.actuator_params
-        self._options = cfg.solver_options
-        self._task = task.TaskParams.from_config(cfg)
-        # The hot path calls the compiled continuation directly with these (see step()).
-        self._prm = params_tuple(self._params)
-        self._opts = self._options.as_tuple()
-        self._model = cfg.model  # "full" (default), "linear" or "auto": see pneunet_env.physics.models
-        self._volume_scale = (
-            free_volume_change(self._params, cfg.pressure_max, self._options) if cfg.observe_volume else None
-        )
+        self.info_level = info_level
+        self._params = task.EnvParams.from_config(self.config)
         self.action_space = spaces.Box(-1.0, 1.0, (1,), np.float32)
-        if cfg.observe_volume:
-            self.observation_space = spaces.Box(
-                np.array([0.0, -np.inf], np.float32), np.array([1.0, np.inf], np.float32), dtype=np.float32
-            )
-        else:
-            self.observation_space = spaces.Box(0.0, 1.0, (1,), np.float32)
-        self._eq: task.SolvedState | None = None
-        self._obj = None
-        self._thresholds = None
+        self.observation_space = observation_space(self.config)
+        self._state: task.EnvState | None = None
         self._static_info: dict[str, Any] | None = None
-        self._state = task.initial_state()
-        self._outcome: task.Outcome | None = None
         self._viewer = None
 
     # ---- the object and state, for users -------------------------------------------------------
     @property
+    def state(self) -> task.EnvState | None:
+        """The whole state (:class:`pneunet_env.task.EnvState`; ``None`` before ``reset``)."""
+        return self._state
+
+    @property
     def object(self):
         """The current episode's :class:`pneunet_env.objects.GraspObject` (``None`` before ``reset``)."""
-        return self._obj
+        return None if self._state is None else self._state.obj
 
     @property
     def equilibrium(self) -> Equilibrium | None:
-        """The current quasi-static state (an :class:`~pneunet_env.physics.solver.Equilibrium`, built on request)."""
-        if self._eq is None:
-            return None
-        return Equilibrium(*self._eq, self._obj.stiffness, self._obj.curvature)
-
-    def _solve(self, kappa: float, side_strain: float, p0: float, p1: float) -> task.SolvedState:
-        """The continuation from ``(kappa~, e_s)`` at ``p0`` to ``p1`` for the current object, as a SolvedState.
-
-        What :func:`pneunet_env.solve_equilibrium` computes, without its argument checks (the pressure comes
-        from :func:`task.update_pressure`, the object was checked at reset) or its dataclass: a step's cost is
-        mostly Python overhead, and this is the hot path.
-        """
-        obj = self._obj
-        if self._model != "full":
-            return self._solve_model(kappa, side_strain, p0, p1)
-        r = step_state(kappa, side_strain, p0, p1, self._prm, obj.stiffness, obj.curvature, self._opts)
-        return task.solved_state(p1, r[0], r[1], r[9], r[2], r[3], r[4], r[5], r[6], r[7], r[8], obj.stiffness,
-                                 obj.curvature, self._prm[0])
-
-    def _solve_model(self, kappa: float, side_strain: float, p0: float, p1: float) -> task.SolvedState:
-        """The step under ``config.model`` = ``"linear"`` or ``"auto"`` (``models.equilibrium_for_model``)."""
-        from pneunet_env.physics.models import equilibrium_for_model
-
-        obj = self._obj
-        prev = None
-        if self._eq is not None and p0 > 0.0:
-            prev = Equilibrium(*self._eq, obj.stiffness, obj.curvature)
-        eq = equilibrium_for_model(self._model, p1, obj.stiffness, obj.curvature, self._params, previous=prev,
-                                   options=self._options)
-        return task.SolvedState(*(getattr(eq, f) for f in task.SolvedState._fields))
+        """The current quasi-static state (an :class:`~pneunet_env.physics.solver.Equilibrium`)."""
+        return None if self._state is None else self._state.eq
 
     # ---- Gymnasium API -----------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
@@ -217,44 +171,26 @@ class PneuNetGraspEnv(gym.Env):
             raise ValueError(f"options must be a dict of object properties to pin, got {options!r}")
         obj = task.sample_object(self.np_random, self.config, pinned=options)
         check_object(obj.stiffness, obj.curvature)
-        self._obj = obj
-        self._thresholds = task.object_thresholds(obj, self._task)
-        self._static_info = task.object_info(obj, self._thresholds, self._task)
-        self._eq = self._solve(0.0, 0.0, 0.0, 0.0)  # the rest state (what solve_equilibrium(0.0, ...) returns)
-        self._state = task.initial_state()
-        self._outcome = None
-        obs = task.observation(self._eq.pressure, self._eq.volume_change, self._task, self._volume_scale)
-        info = task.build_info(self._eq, self._eq, obj, self._thresholds, self._state, self._task,
-                               static=self._static_info)
+        self._state = state = task.reset_state(obj, self._params, task.newton_contact)
+        self._static_info = task.object_info(obj, state.thresholds, self._params.task)
+        obs = task.observation(state.command, state.eq.volume_change, self._params.task, self._params.volume_scale)
+        info = task.build_info(state, self._params.task, None, self.info_level, self._static_info)
         if self.render_mode == "human":
             self.render()
         return obs, info
 
     def step(self, action):
-        if self._eq is None:
+        if self._state is None:
             raise RuntimeError("call reset() before step()")
-        a = task.single_action(action)
-        prev = self._eq
-        pressure, clipped = task.update_pressure(prev.pressure, a, self._task)  # raises on NaN/inf
-        obj = self._obj
-        solve = self._solve(prev.curvature, prev.side_strain, prev.pressure, pressure)
-        failed = not solve.converged
-        eq = prev if failed else solve
-        self._eq = eq
-        out = task.transition(
-            self._state, eq.contact_force, eq.indentation, eq.in_contact, self._thresholds, failed, self._task
-        )
-        self._state = out.state
-        self._outcome = out
-        obs = task.observation(eq.pressure, eq.volume_change, self._task, self._volume_scale)
-        info = task.build_info(eq, solve, obj, self._thresholds, out.state, self._task, out, bool(clipped), failed,
-                               static=self._static_info)
-        terminated, truncated = bool(out.terminated), bool(out.truncated)
+        res = task.step(self._state, task.single_action(action), self._params, task.newton_contact)
+        self._state = res.state
+        info = task.build_info(res.state, self._params.task, res, self.info_level, self._static_info)
+        terminated, truncated = bool(res.terminated), bool(res.truncated)
         if terminated or truncated:
-            info["is_success"] = bool(out.success)
+            info["is_success"] = bool(res.outcome.success)
         if self.render_mode == "human":
             self.render()
-        return obs, float(out.reward), terminated, truncated, info
+        return res.obs, float(res.reward), terminated, truncated, info
 
     def render(self):
         if self.render_mode is None:
@@ -265,8 +201,8 @@ class PneuNetGraspEnv(gym.Env):
             return None
         from pneunet_env.envs.render import HumanViewer, render_frame
 
-        frame = render_frame(self.render_state(), self.config.render_width, self.config.render_height,
-                             chambers=self.config.render_chambers)
+        r = self.config.render
+        frame = render_frame(self.render_state(), r.width, r.height, chambers=r.chambers)
         if self.render_mode == "rgb_array":
             return frame
         if self._viewer is None:
@@ -276,33 +212,21 @@ class PneuNetGraspEnv(gym.Env):
 
     def render_state(self):
         """What :func:`pneunet_env.envs.render.render_frame` draws, from the current state."""
-        from pneunet_env.envs.render import RenderState
+        from pneunet_env.envs.render import render_state
 
-        if self._eq is None:
+        if self._state is None:
             raise RuntimeError("call reset() before render()")
-        eq, obj, thr, st, out = self._eq, self._obj, self._thresholds, self._state, self._outcome
-        return RenderState(
-            curvature=eq.curvature,
-            side_strain=eq.side_strain,
-            params=self._params,
-            pressure_fraction=eq.pressure / self._task.pressure_max,
-            object_curvature=obj.curvature,
-            object_thickness=obj.thickness,
-            contact_force=eq.contact_force,
-            indentation=eq.indentation if eq.in_contact else 0.0,
-            in_contact=eq.in_contact,
-            failure_traction=thr.failure_traction,
-            crush_indentation=thr.crush_indentation,
-            grip_traction=thr.grip_traction,
-            damaged=bool(st.damaged),
-            dropped=bool(st.dropped),
-            in_hold=bool(out.in_hold) if out is not None else False,
-            progress=st.step / self._task.episode_steps,
-            hold_start=self._task.squeeze_steps / self._task.episode_steps,
-        )
+        return render_state(self._state, self._params)
 
     def close(self):
         if self._viewer is not None:
             self._viewer.close()
             self._viewer = None
         super().close()
+
+
+def observation_space(config: EnvConfig) -> spaces.Box:
+    """One env's observation space: ``[p / p_max]``, or ``[p / p_max, dV / dV_free(p_max)]`` with ``observe_volume``."""
+    if config.task.observe_volume:
+        return spaces.Box(np.array([0.0, -np.inf], np.float32), np.array([1.0, np.inf], np.float32), dtype=np.float32)
+    return spaces.Box(0.0, 1.0, (1,), np.float32)

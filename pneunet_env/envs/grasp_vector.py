@@ -14,6 +14,8 @@ masks) and random objects, to round-off (tested to 1e-10, with episodes that end
 
 from __future__ import annotations
 
+import dataclasses
+import functools
 import operator
 from collections.abc import Sequence
 from typing import Any
@@ -26,10 +28,9 @@ from gymnasium.vector.utils import batch_space
 
 from pneunet_env import task
 from pneunet_env.config import RANGE_FIELDS, EnvConfig, load_config
-from pneunet_env.envs.grasp import free_volume_change
+from pneunet_env.envs.grasp import observation_space
 from pneunet_env.objects import GraspObject
-from pneunet_env.physics.batched import BACKENDS, solve_batch
-from pneunet_env.physics.params import ActuatorParams
+from pneunet_env.physics.batched import BACKENDS
 from pneunet_env.physics.solver import Equilibrium
 
 __all__ = ["PneuNetGraspVectorEnv", "PCG64Streams"]
@@ -200,27 +201,6 @@ def _seed_words(seeds: Sequence[int] | int, n: int) -> np.ndarray:
 # ------------------------------------------------------------------------------------------------------
 
 
-def _take(nt, idx):
-    """A NamedTuple/dataclass of arrays, restricted to ``idx``."""
-    return type(nt)(*(np.asarray(v)[idx] if np.ndim(v) else v for v in _fields(nt)))
-
-
-def _fields(record) -> tuple:
-    if isinstance(record, tuple):
-        return tuple(record)
-    return tuple(getattr(record, f) for f in record.__dataclass_fields__)
-
-
-def _merge(old, idx, new):
-    """A fresh record: ``old`` with entries ``idx`` replaced by ``new`` (arrays are never changed in place)."""
-    out = []
-    for a, b in zip(_fields(old), _fields(new), strict=True):
-        c = np.array(a, copy=True)
-        c[idx] = b
-        out.append(c)
-    return type(old)(*out)
-
-
 def _zero_like(a: np.ndarray):
     return None if a.dtype == object else a.dtype.type(0)
 
@@ -317,6 +297,7 @@ class PneuNetGraspVectorEnv(VectorEnv):
         max_episode_steps: int | None = None,
         backend: str = "auto",
         parallel: bool | None = None,
+        info_level: str = "lean",
         **overrides: Any,
     ) -> None:
         try:
@@ -329,6 +310,8 @@ class PneuNetGraspVectorEnv(VectorEnv):
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
         if backend not in BACKENDS:
             raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
+        if info_level not in task.INFO_LEVELS:
+            raise ValueError(f"info_level must be one of {task.INFO_LEVELS}, got {info_level!r}")
         if max_episode_steps is not None:
             try:
                 max_episode_steps = operator.index(max_episode_steps)
@@ -342,63 +325,55 @@ class PneuNetGraspVectorEnv(VectorEnv):
         self.max_episode_steps = max_episode_steps
         self.backend = backend
         self.parallel = parallel
+        self.info_level = info_level
         self.config: EnvConfig = load_config(config, **overrides)
-        cfg = self.config
-        if cfg.model != "full":
-            raise ValueError(
-                f"config key 'model' = {cfg.model!r}: the vector env solves the full model only (the batched solver); "
-                "use the single env for 'linear' or 'auto' (the solver study shows 'auto' saves no time here)"
-            )
-        self._params: ActuatorParams = cfg.actuator_params
-        self._options = cfg.solver_options
-        self._task = task.TaskParams.from_config(cfg)
-        self._volume_scale = (
-            free_volume_change(self._params, cfg.pressure_max, self._options) if cfg.observe_volume else None
-        )
+        self._params = task.EnvParams.from_config(self.config)
+        self._contact = functools.partial(task.newton_contact_batch, backend=backend, parallel=parallel)
         self.single_action_space = spaces.Box(-1.0, 1.0, (1,), np.float32)
-        if cfg.observe_volume:
-            self.single_observation_space = spaces.Box(
-                np.array([0.0, -np.inf], np.float32), np.array([1.0, np.inf], np.float32), dtype=np.float32
-            )
-        else:
-            self.single_observation_space = spaces.Box(0.0, 1.0, (1,), np.float32)
+        self.single_observation_space = observation_space(self.config)
         self.action_space = batch_space(self.single_action_space, n)
         self.observation_space = batch_space(self.single_observation_space, n)
         self._streams = PCG64Streams(n)
         self._seeded = False
-        self._eq: task.SolvedState | None = None
-        self._obj: GraspObject | None = None
-        self._thr: task.Thresholds | None = None
-        self._state: task.TaskState = task.initial_state((n,))
-        self._in_hold = np.zeros(n, bool)
+        self._state: task.EnvState | None = None
         self._obs: np.ndarray | None = None
 
     # ---- state, for users ------------------------------------------------------------------------------
     @property
-    def objects(self) -> GraspObject | None:
-        """The current objects: a :class:`~pneunet_env.objects.GraspObject` of ``(N,)`` arrays (copies)."""
-        return None if self._obj is None else GraspObject(*(np.copy(v) for v in _fields(self._obj)))
+    def state(self) -> task.EnvState | None:
+        """The whole state (:class:`pneunet_env.task.EnvState` of ``(N,)`` arrays; never changed in place)."""
+        return self._state
 
     @property
-    def equilibria(self) -> task.SolvedState | None:
-        """The current quasi-static states: a :class:`~pneunet_env.task.SolvedState` of ``(N,)`` arrays (copies)."""
-        return None if self._eq is None else task.SolvedState(*(np.copy(v) for v in self._eq))
+    def objects(self) -> GraspObject | None:
+        """The current objects: a :class:`~pneunet_env.objects.GraspObject` of ``(N,)`` arrays (copies)."""
+        if self._state is None:
+            return None
+        obj = self._state.obj
+        return GraspObject(*(np.copy(getattr(obj, f.name)) for f in dataclasses.fields(obj)))
+
+    @property
+    def equilibria(self) -> Equilibrium | None:
+        """The current quasi-static states: an :class:`~pneunet_env.physics.solver.Equilibrium` of ``(N,)`` arrays
+        (copies)."""
+        return None if self._state is None else Equilibrium(*(np.copy(v) for v in self._state.eq))
 
     def equilibrium(self, i: int) -> Equilibrium:
-        """Sub-env ``i``'s state as the single env's :class:`~pneunet_env.physics.solver.Equilibrium`."""
-        if self._eq is None:
+        """Sub-env ``i``'s state as the single env's :class:`~pneunet_env.physics.solver.Equilibrium` (scalars)."""
+        if self._state is None:
             raise RuntimeError("call reset() first")
-        vals = [v[i].item() if isinstance(v[i], np.generic) else v[i] for v in self._eq]
-        return Equilibrium(*vals, float(self._obj.stiffness[i]), float(self._obj.curvature[i]))
+        return Equilibrium(*(v[i].item() for v in self._state.eq))
 
     def sub_env_generator(self, i: int) -> np.random.Generator:
         """A copy of sub-env ``i``'s random stream (what a single env's ``np_random`` would be now)."""
         return self._streams.generator(i)
 
     def state_nbytes(self) -> int:
-        """Bytes of state kept between steps, all envs (arrays of the equilibria, objects, thresholds, task
-        state, last observation and random streams; the ``status`` entries as 8-byte references)."""
-        arrays = [*self._eq, *_fields(self._obj), *self._thr, *self._state, self._in_hold, self._obs]
+        """Bytes of state kept between steps, all envs (the :class:`~pneunet_env.task.EnvState`'s arrays, the last
+        observation and the random streams)."""
+        s = self._state
+        obj = [getattr(s.obj, f.name) for f in dataclasses.fields(s.obj)]
+        arrays = [s.command, *s.eq, *obj, *s.thresholds, *s.task, self._obs]
         return int(sum(np.asarray(a).nbytes for a in arrays)) + self._streams.nbytes
 
     # ---- Gymnasium API -----------------------------------------------------------------------------------
@@ -414,25 +389,33 @@ class PneuNetGraspVectorEnv(VectorEnv):
             if mask.dtype != bool or mask.shape != (n,):
                 raise ValueError(f"options['reset_mask'] must be a bool array of shape ({n},), got "
                                  f"{mask.dtype} {mask.shape}")
-            if self._eq is None and not mask.all():
+            if self._state is None and not mask.all():
                 raise ValueError("the first reset must reset every sub-env (reset_mask all true)")
+            if mask.all():
+                mask = None  # every sub-env: a full reset
         idx = np.arange(n) if mask is None else np.flatnonzero(mask)
         self._seed(seed, idx)
         pins = {k: (np.asarray(v)[idx] if np.ndim(v) == 1 and np.shape(v) == (n,) else v) for k, v in pins.items()}
-        obs_r, info_r = self._reset_envs(idx, pins)
+        obj = self._draw(idx, pins)
         if mask is None:
-            obs, info = obs_r, self._with_masks(info_r, None)
+            self._state = task.reset_state(obj, self._params, self._contact)
+            obs, info = self._observe(self._state), self._info(self._state, None, None)
         else:
+            self._state = task.autoreset(self._state, idx, obj, self._params, self._contact)
             obs = self._obs.copy()
-            obs[idx] = obs_r
-            info = {}
-            for k, v in info_r.items():
-                full = np.full(n, _zero_like(np.asarray(v)), dtype=np.asarray(v).dtype)
-                full[idx] = v
-                info[k] = full
-            info = self._with_masks(info, mask)
+            obs[idx] = self._observe(self._state)[idx]
+            info = self._info(self._state, None, mask)
+            info = {k: np.where(mask, v, _zero_like(v)) if k[0] != "_" else v for k, v in info.items()}
         self._obs = obs.copy()
         return obs, info
+
+    def _draw(self, idx: np.ndarray, pins: dict[str, Any]) -> GraspObject:
+        """Objects for sub-envs ``idx``, from each one's own stream (the vector env's only source of randomness)."""
+        u = self._streams.random(idx, len(RANGE_FIELDS))
+        return task.object_from_uniforms(u, self.config, pinned=pins, batch=True)
+
+    def _observe(self, state: task.EnvState) -> np.ndarray:
+        return task.observation(state.command, state.eq.volume_change, self._params.task, self._params.volume_scale)
 
     def _seed(self, seed, idx: np.ndarray) -> None:
         n = self.num_envs
@@ -459,35 +442,6 @@ class PneuNetGraspVectorEnv(VectorEnv):
                 self._streams.seed(sel, _seed_words([seeds[i] for i in sel], sel.size))
         self._seeded = True
 
-    def _reset_envs(self, idx: np.ndarray, pins: dict[str, Any]) -> tuple[np.ndarray, dict[str, Any]]:
-        """Reset sub-envs ``idx`` (draw objects, rest state); return their observations and info (subset)."""
-        m = idx.size
-        u = self._streams.random(idx, len(RANGE_FIELDS))
-        obj = task.object_from_uniforms(u, self.config, pinned=pins, batch=True)
-        thr = task.object_thresholds(obj, self._task)
-        zeros = np.zeros(m)
-        r = solve_batch(zeros, zeros, zeros, zeros, obj.stiffness, obj.curvature, self._params, self._options,
-                        backend=self.backend, parallel=self.parallel)
-        eq = task.solved_state(zeros.copy(), r.kappa, r.side_strain, r.volume_change, r.energy, r.gradient_norm,
-                               r.min_eigenvalue, r.iterations, r.substeps, r.snapped, r.status, obj.stiffness,
-                               obj.curvature, self._params.chamber_height)
-        st = task.initial_state((m,))
-        if m == self.num_envs:  # every sub-env (the first reset always is: checked in reset)
-            self._eq, self._obj, self._thr, self._state = eq, obj, thr, st
-            self._in_hold = np.zeros(m, bool)
-        else:
-            self._eq = _merge(self._eq, idx, eq)
-            self._obj = _merge(self._obj, idx, obj)
-            self._thr = _merge(self._thr, idx, thr)
-            self._state = _merge(self._state, idx, st)
-            in_hold = self._in_hold.copy()
-            in_hold[idx] = False
-            self._in_hold = in_hold
-        obs = task.observation(eq.pressure, eq.volume_change, self._task, self._volume_scale)
-        info = task.build_info(eq, eq, obj, thr, st, self._task)
-        info = {k: (np.array(v) if np.ndim(v) else np.full(m, v)) for k, v in info.items()}  # own, full arrays
-        return obs, info
-
     def _check_actions(self, actions) -> np.ndarray:
         n = self.num_envs
         try:
@@ -504,91 +458,77 @@ class PneuNetGraspVectorEnv(VectorEnv):
             raise ValueError(f"actions[{i}] must be finite (no NaN or inf), got {a[i]!r}")
         return a
 
+    def _info(self, state: task.EnvState, res: task.Step | None, mask: np.ndarray | None) -> dict[str, Any]:
+        """The info of ``state`` (after ``res``, or at reset), as Gymnasium's vector info: ``(N,)`` arrays, each
+        with a ``_key`` mask (``mask``, or all true). Fresh arrays: the state is never handed out."""
+        n = self.num_envs
+        info = task.build_info(state, self._params.task, res, self.info_level)
+        own = {id(v) for rec in (state.eq, state.thresholds, state.task) for v in rec}
+        own.update(id(getattr(state.obj, f.name)) for f in dataclasses.fields(state.obj))
+        if res is not None:
+            own.update(id(v) for v in res.solve)
+        base = np.ones(n, bool) if mask is None else mask
+        out: dict[str, Any] = {}
+        for k, v in info.items():
+            if np.ndim(v) == 0:
+                v = np.full(n, v)
+            elif id(v) in own:
+                v = v.copy()
+            out[k] = v
+            out["_" + k] = base.copy()  # one array per key, as Gymnasium's vector envs give
+        return out
+
     def step(self, actions):
-        if self._eq is None:
+        if self._state is None:
             raise RuntimeError("call reset() before step()")
         a = self._check_actions(actions)
-        n = self.num_envs
-        prev, obj, thr, tp = self._eq, self._obj, self._thr, self._task
-        pressure, clipped = task.update_pressure(prev.pressure, a, tp)
-        r = solve_batch(prev.curvature, prev.side_strain, prev.pressure, pressure, obj.stiffness, obj.curvature,
-                        self._params, self._options, backend=self.backend, validate=False, parallel=self.parallel)
-        solve = task.solved_state(pressure, r.kappa, r.side_strain, r.volume_change, r.energy, r.gradient_norm,
-                                  r.min_eigenvalue, r.iterations, r.substeps, r.snapped, r.status, obj.stiffness,
-                                  obj.curvature, self._params.chamber_height)
-        failed = ~solve.converged
-        # A failed solve keeps the previous state (as the single env does).
-        eq = task.SolvedState(*(np.where(failed, p, s) for p, s in zip(prev, solve, strict=True))) if failed.any() \
-            else solve
-        out = task.transition(self._state, eq.contact_force, eq.indentation, eq.in_contact, thr, failed, tp)
-        terminated = np.asarray(out.terminated, dtype=bool)
-        truncated = np.asarray(out.truncated, dtype=bool)
+        res = task.step(self._state, a, self._params, self._contact)
+        terminated = np.asarray(res.terminated, dtype=bool)
+        truncated = np.asarray(res.truncated, dtype=bool)
+        state = res.state
         if self.max_episode_steps is not None:
-            truncated = truncated | (out.state.step >= self.max_episode_steps)
-        reward = np.asarray(out.reward, dtype=np.float64)
-        obs = task.observation(eq.pressure, eq.volume_change, tp, self._volume_scale)
-        info = task.build_info(eq, solve, obj, thr, out.state, tp, out, clipped, failed)
-        own = {id(v) for v in (*eq, *solve, *_fields(obj), *thr, *out.state)}
-        info = {k: (v.copy() if id(v) in own else v) for k, v in info.items()}  # never hand out the state
-        self._eq, self._state, self._in_hold = eq, out.state, np.asarray(out.in_hold, dtype=bool)
+            truncated = truncated | (state.task.step >= self.max_episode_steps)
+        reward = np.asarray(res.reward, dtype=np.float64)
+        obs = res.obs
+        info = self._info(state, res, None)
+        self._state = state
         done = terminated | truncated
         if not done.any():
             self._obs = obs.copy()
-            return obs, reward, terminated, truncated, self._with_masks(info, None)
+            return obs, reward, terminated, truncated, info
 
         # SAME_STEP autoreset: the ended step's observation and info go to final_obs / final_info.
         idx = np.flatnonzero(done)
-        final_info = {k: np.where(done, v, _zero_like(v)) for k, v in info.items()}
-        final_info["is_success"] = done & np.asarray(out.success, dtype=bool)
-        final_info = self._with_masks(final_info, done)
-        final_obs = np.full(n, None, dtype=object)
+        final_info = {k: np.where(done, v, _zero_like(v)) for k, v in info.items() if k[0] != "_"}
+        final_info["is_success"] = done & np.asarray(res.outcome.success, dtype=bool)
+        final_info = {k2: v2 for k, v in final_info.items() for k2, v2 in ((k, v), ("_" + k, done.copy()))}
+        final_obs = np.full(self.num_envs, None, dtype=object)
         final_obs[idx] = np.fromiter(obs[idx], dtype=object, count=idx.size)
-        obs_r, info_r = self._reset_envs(idx, {})
-        obs[idx] = obs_r
-        for k, v in info_r.items():
-            info[k][idx] = v
-        info = self._with_masks(info, None)
+        self._state = task.autoreset(state, idx, self._draw(idx, {}), self._params, self._contact)
+        obs = obs.copy()
+        obs[idx] = self._observe(self._state)[idx]
+        reset_info = self._info(self._state, None, done)
+        for k, v in reset_info.items():
+            if k[0] == "_":
+                continue
+            if k in info:
+                info[k][idx] = v[idx]
+            else:  # a key only a reset info has (the object's constants, at the lean level)
+                info[k] = np.where(done, v, _zero_like(v))
+                info["_" + k] = done.copy()
         info["final_obs"], info["_final_obs"] = final_obs, done.copy()
         info["final_info"], info["_final_info"] = final_info, done.copy()
         self._obs = obs.copy()
         return obs, reward, terminated, truncated, info
 
-    def _with_masks(self, info: dict[str, Any], mask: np.ndarray | None) -> dict[str, Any]:
-        """Gymnasium's vector info: every key with a ``_key`` bool mask (all true if ``mask`` is None)."""
-        base = np.ones(self.num_envs, bool) if mask is None else mask
-        out: dict[str, Any] = {}
-        for k, v in info.items():
-            out[k] = v
-            out["_" + k] = base.copy()  # one array per key, as Gymnasium's vector envs give
-        return out
-
     # ---- rendering ----------------------------------------------------------------------------------------
     def render_state(self, i: int):
         """What :func:`pneunet_env.envs.render.render_frame` draws for sub-env ``i``."""
-        from pneunet_env.envs.render import RenderState
+        from pneunet_env.envs.render import render_state
 
-        if self._eq is None:
+        if self._state is None:
             raise RuntimeError("call reset() before render()")
-        eq, obj, thr, st, tp = self._eq, self._obj, self._thr, self._state, self._task
-        return RenderState(
-            curvature=float(eq.curvature[i]),
-            side_strain=float(eq.side_strain[i]),
-            params=self._params,
-            pressure_fraction=float(eq.pressure[i]) / tp.pressure_max,
-            object_curvature=float(obj.curvature[i]),
-            object_thickness=float(obj.thickness[i]),
-            contact_force=float(eq.contact_force[i]),
-            indentation=float(eq.indentation[i]) if eq.in_contact[i] else 0.0,
-            in_contact=bool(eq.in_contact[i]),
-            failure_traction=float(thr.failure_traction[i]),
-            crush_indentation=float(thr.crush_indentation[i]),
-            grip_traction=float(thr.grip_traction[i]),
-            damaged=bool(st.damaged[i]),
-            dropped=bool(st.dropped[i]),
-            in_hold=bool(self._in_hold[i]),
-            progress=int(st.step[i]) / tp.episode_steps,
-            hold_start=tp.squeeze_steps / tp.episode_steps,
-        )
+        return render_state(self._state, self._params, i)
 
     def render(self) -> tuple[np.ndarray, ...] | None:
         """``rgb_array``: one frame per sub-env (a tuple of ``(H, W, 3)`` uint8 arrays)."""
@@ -600,9 +540,9 @@ class PneuNetGraspVectorEnv(VectorEnv):
             return None
         from pneunet_env.envs.render import render_frame
 
-        cfg = self.config
-        return tuple(render_frame(self.render_state(i), cfg.render_width, cfg.render_height,
-                                  chambers=cfg.render_chambers) for i in range(self.num_envs))
+        r = self.config.render
+        return tuple(render_frame(self.render_state(i), r.width, r.height, chambers=r.chambers)
+                     for i in range(self.num_envs))
 
     def close_extras(self, **kwargs: Any) -> None:
         pass

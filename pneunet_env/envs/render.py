@@ -34,7 +34,7 @@ import numpy as np
 
 from pneunet_env.physics.params import ActuatorParams
 
-__all__ = ["RenderState", "render_frame", "save_png", "read_png", "contact_sheet", "HumanViewer"]
+__all__ = ["RenderState", "render_state", "render_frame", "save_png", "read_png", "contact_sheet", "HumanViewer"]
 
 # colours (RGB)
 _BACKGROUND = np.array([248, 248, 244], float)
@@ -78,6 +78,36 @@ class RenderState(NamedTuple):
     in_hold: bool
     progress: float  # step / episode length
     hold_start: float  # squeeze_steps / episode length
+
+
+def render_state(state, params, i: int | None = None) -> RenderState:
+    """What a frame shows of an env's :class:`pneunet_env.task.EnvState` (of its entry ``i`` for a batch)."""
+
+    def at(v):
+        return v if i is None else v[i]
+
+    eq, obj, thr, st, tp = state.eq, state.obj, state.thresholds, state.task, params.task
+    step = int(at(st.step))
+    in_contact = bool(at(eq.in_contact))
+    return RenderState(
+        curvature=float(at(eq.curvature)),
+        side_strain=float(at(eq.side_strain)),
+        params=params.actuator_params,
+        pressure_fraction=float(at(state.command)) / tp.pressure_max,
+        object_curvature=float(at(obj.curvature)),
+        object_thickness=float(at(obj.thickness)),
+        contact_force=float(at(eq.contact_force)),
+        indentation=float(at(eq.indentation)) if in_contact else 0.0,
+        in_contact=in_contact,
+        failure_traction=float(at(thr.failure_traction)),
+        crush_indentation=float(at(thr.crush_indentation)),
+        grip_traction=float(at(thr.grip_traction)),
+        damaged=bool(at(st.damaged)),
+        dropped=bool(at(st.dropped)),
+        in_hold=step > tp.squeeze_steps,
+        progress=step / tp.episode_steps,
+        hold_start=tp.squeeze_steps / tp.episode_steps,
+    )
 
 
 class _Canvas:

@@ -48,13 +48,14 @@ when the traction is below ``rho g H / (grip_faces mu_f)``; ``info["is_success"]
 
 ## Info
 
-The keys of ``PneuNetGrasp-v0``'s info (:func:`pneunet_env.task.build_info`), with ``pressure`` 0 and the
-solver's entries those of an exact kinematic answer (``solver_status = "kinematic"``), plus
-``jaw_closure_mm``, ``jaw_travel_mm`` and ``gripper = "rigid"``. ``curvature`` is the jaw arc's ``w / R_jaw``.
+The keys of ``PneuNetGrasp-v0``'s info (:func:`pneunet_env.task.build_info`, at the same ``info_level``), with the
+pressure 0 and the solver's entries those of an exact kinematic answer (converged, no iterations), plus
+``jaw_closure_mm``, ``jaw_travel_mm`` and ``gripper = "rigid"``. The curvature is the jaw arc's ``w / R_jaw``.
 """
 
 from __future__ import annotations
 
+import functools
 import math
 from typing import Any
 
@@ -65,8 +66,9 @@ from gymnasium import spaces
 from pneunet_env import task
 from pneunet_env.config import EnvConfig, load_config
 from pneunet_env.physics.params import check_positive
+from pneunet_env.physics.solver import STATUS_CONVERGED, Equilibrium
 
-__all__ = ["RigidGraspEnv", "ENV_ID", "jaw_indentation", "default_jaw_travel_mm"]
+__all__ = ["RigidGraspEnv", "ENV_ID", "jaw_indentation", "default_jaw_travel_mm", "kinematic_contact"]
 
 ENV_ID = "RigidGrasp-v0"
 
@@ -74,11 +76,11 @@ ENV_ID = "RigidGrasp-v0"
 def default_jaw_travel_mm(config: EnvConfig) -> float:
     """``2 crush_fraction H_max``, capped at 90 % of the nominal object's radius (mm)."""
     radius_mm = 1e3 / _nominal_curvature_per_m(config)
-    return min(2.0 * config.crush_fraction * config.object_thickness_mm[1], 0.9 * radius_mm)
+    return min(2.0 * config.task.crush_fraction * config.objects.object_thickness_mm[1], 0.9 * radius_mm)
 
 
 def _nominal_curvature_per_m(config: EnvConfig) -> float:
-    lo, hi = config.object_curvature_per_m
+    lo, hi = config.objects.object_curvature_per_m
     return 0.5 * (lo + hi)
 
 
@@ -88,6 +90,24 @@ def jaw_indentation(closure_mm, object_curvature_per_m, nominal_curvature_per_m)
     Negative means no contact (the jaw stops short of a smaller object).
     """
     return closure_mm + 1e3 / np.asarray(object_curvature_per_m) - 1e3 / nominal_curvature_per_m
+
+
+def kinematic_contact(kappa, side_strain, p0, closure_mm, obj, params, nominal_curvature_per_m: float) -> Equilibrium:
+    """The rigid jaw's contact: nothing to solve. The jaw closed by ``closure_mm`` indents the object by
+    :func:`jaw_indentation`; the traction is eq. 3.1's, ``F~ = k~ delta~``. The start state is ignored (a
+    position-controlled jaw has no history). A :data:`pneunet_env.task.Contact` for one env."""
+    w = params.task.width_mm
+    delta_mm = float(jaw_indentation(closure_mm, obj.curvature_per_m, nominal_curvature_per_m))
+    in_contact = delta_mm > 0.0 and obj.stiffness > 0.0
+    delta = delta_mm / w if in_contact else 0.0
+    r_jaw_mm = 1e3 / nominal_curvature_per_m - closure_mm
+    return Equilibrium(
+        pressure=0.0, curvature=w / r_jaw_mm, side_strain=0.0, top_strain=0.0,
+        contact_force=obj.stiffness * delta,  # F~ = k~ delta~ (eq. 3.1)
+        indentation=delta, in_contact=in_contact, volume_change=0.0, energy=0.0, gradient_norm=0.0,
+        min_eigenvalue=math.inf, converged=True, iterations=0, substeps=0, snapped=False, status=STATUS_CONVERGED,
+        object_stiffness=obj.stiffness, object_curvature=obj.curvature,
+    )
 
 
 class RigidGraspEnv(gym.Env):
@@ -101,15 +121,19 @@ class RigidGraspEnv(gym.Env):
         config: Any = None,
         jaw_travel_mm: float | None = None,
         jaw_step_mm: float | None = None,
+        info_level: str = "lean",
         **overrides: Any,
     ) -> None:
         if render_mode is not None:
             raise ValueError(f"RigidGrasp-v0 does not render (render_mode must be None), got {render_mode!r}")
+        if info_level not in task.INFO_LEVELS:
+            raise ValueError(f"info_level must be one of {task.INFO_LEVELS}, got {info_level!r}")
         self.render_mode = None
+        self.info_level = info_level
         self.config: EnvConfig = load_config(config, **overrides)
         cfg = self.config
-        self._nominal = _nominal_curvature_per_m(cfg)
-        radius_mm = 1e3 / self._nominal
+        nominal = _nominal_curvature_per_m(cfg)
+        radius_mm = 1e3 / nominal
         travel = (
             default_jaw_travel_mm(cfg) if jaw_travel_mm is None else check_positive("jaw_travel_mm", jaw_travel_mm)
         )
@@ -117,87 +141,55 @@ class RigidGraspEnv(gym.Env):
             raise ValueError(
                 f"jaw_travel_mm = {travel!r} reaches the centre of the nominal object (radius {radius_mm:g} mm)"
             )
-        step = travel * cfg.max_pressure_step_kpa / cfg.max_pressure_kpa if jaw_step_mm is None else jaw_step_mm
+        tc = cfg.task
+        step = travel * tc.max_pressure_step_kpa / tc.max_pressure_kpa if jaw_step_mm is None else jaw_step_mm
         step = check_positive("jaw_step_mm", step)
         if step > travel:
             raise ValueError(f"jaw_step_mm = {step!r} exceeds jaw_travel_mm = {travel!r}")
         self.jaw_travel_mm = float(travel)
         self.jaw_step_mm = float(step)
-        self._task = task.TaskParams.from_config(cfg)
-        # The jaw closure, in the same normalised units the pneu-net's pressure uses: the task's
-        # ``update_pressure`` then moves it (clip to [-1, 1], step, clip to [0, travel]).
-        self._jaw_task = self._task._replace(pressure_max=self.jaw_travel_mm, pressure_step=self.jaw_step_mm)
+        self.nominal_curvature_per_m = nominal  # the jaw's arc fits an object of this curvature exactly
+        # The jaw closure (mm) is the command, moved as the pneu-net's pressure is: clip the action to [-1, 1],
+        # step by jaw_step_mm, clip to [0, jaw_travel_mm]. Everything else is PneuNetGrasp-v0's.
+        base = task.EnvParams.from_config(cfg)
+        jaw_task = base.task._replace(pressure_max=self.jaw_travel_mm, pressure_step=self.jaw_step_mm)
+        self._params = base._replace(task=jaw_task, volume_scale=None)
+        self._contact = functools.partial(kinematic_contact, nominal_curvature_per_m=nominal)
         self.action_space = spaces.Box(-1.0, 1.0, (1,), np.float32)
         self.observation_space = spaces.Box(0.0, 1.0, (1,), np.float32)
-        self._obj = None
-        self._thresholds = None
-        self._closure = 0.0
-        self._state = task.initial_state()
-        self._started = False
+        self._state: task.EnvState | None = None
 
     @property
     def object(self):
         """The current episode's :class:`pneunet_env.objects.GraspObject` (``None`` before ``reset``)."""
-        return self._obj
+        return None if self._state is None else self._state.obj
 
-    def _contact(self) -> task.SolvedState:
-        """The kinematic contact, as the task's :class:`~pneunet_env.task.SolvedState` (nothing to solve)."""
-        obj, w = self._obj, self.config.width_mm
-        delta_mm = float(jaw_indentation(self._closure, obj.curvature_per_m, self._nominal))
-        in_contact = delta_mm > 0.0 and obj.stiffness > 0.0
-        delta = delta_mm / w if in_contact else 0.0
-        r_jaw_mm = 1e3 / self._nominal - self._closure
-        return task.SolvedState(
-            pressure=0.0,
-            curvature=w / r_jaw_mm,
-            side_strain=0.0,
-            top_strain=0.0,
-            contact_force=obj.stiffness * delta,  # F~ = k~ delta~ (eq. 3.1)
-            indentation=delta,
-            in_contact=in_contact,
-            volume_change=0.0,
-            energy=0.0,
-            gradient_norm=0.0,
-            min_eigenvalue=math.inf,
-            converged=True,
-            iterations=0,
-            substeps=0,
-            snapped=False,
-            status="kinematic",
-        )
+    @property
+    def state(self) -> task.EnvState | None:
+        """The whole state (:class:`pneunet_env.task.EnvState`); ``command`` is the jaw closure in mm."""
+        return self._state
 
-    def _obs(self) -> np.ndarray:
-        return np.array([self._closure / self.jaw_travel_mm], dtype=np.float32)
-
-    def _info(self, contact: task.SolvedState, outcome=None, clipped=False) -> dict[str, Any]:
-        info = task.build_info(contact, contact, self._obj, self._thresholds, self._state, self._task, outcome,
-                               bool(clipped), False)
-        info.update(jaw_closure_mm=self._closure, jaw_travel_mm=self.jaw_travel_mm, gripper="rigid")
+    def _info(self, res: task.Step | None) -> dict[str, Any]:
+        info = task.build_info(self._state, self._params.task, res, self.info_level)
+        info.update(jaw_closure_mm=self._state.command, jaw_travel_mm=self.jaw_travel_mm, gripper="rigid")
         return info
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
         if options is not None and not isinstance(options, dict):
             raise ValueError(f"options must be a dict of object properties to pin, got {options!r}")
-        self._obj = task.sample_object(self.np_random, self.config, pinned=options)
-        self._thresholds = task.object_thresholds(self._obj, self._task)
-        self._closure = 0.0
-        self._state = task.initial_state()
-        self._started = True
-        return self._obs(), self._info(self._contact())
+        obj = task.sample_object(self.np_random, self.config, pinned=options)
+        self._state = task.reset_state(obj, self._params, self._contact)
+        obs = task.observation(self._state.command, 0.0, self._params.task)
+        return obs, self._info(None)
 
     def step(self, action):
-        if not self._started:
+        if self._state is None:
             raise RuntimeError("call reset() before step()")
-        a = task.single_action(action)
-        self._closure, clipped = task.update_pressure(self._closure, a, self._jaw_task)  # raises on NaN
-        c = self._contact()
-        out = task.transition(self._state, c.contact_force, c.indentation, c.in_contact, self._thresholds, False,
-                              self._task)
-        self._state = out.state
-        info = self._info(c, out, clipped)
-        terminated, truncated = bool(out.terminated), bool(out.truncated)
+        res = task.step(self._state, task.single_action(action), self._params, self._contact)
+        self._state = res.state
+        info = self._info(res)
+        terminated, truncated = bool(res.terminated), bool(res.truncated)
         if terminated or truncated:
-            info["is_success"] = bool(out.success)
-        return self._obs(), float(out.reward), terminated, truncated, info
-
+            info["is_success"] = bool(res.outcome.success)
+        return res.obs, float(res.reward), terminated, truncated, info

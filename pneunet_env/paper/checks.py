@@ -29,6 +29,7 @@ import numpy as np
 
 from pneunet_env.paper.figures import (
     FIG2_STIFFNESSES,
+    FIGURES,
     OBJECT_CURVATURE,
     PAPER_PRESSURE_MAX,
     TABLE1_WIDTH_MM,
@@ -769,8 +770,6 @@ CHECKS: tuple[Callable[[Tables], CheckResult], ...] = (
 
 def run_checks(tables: Tables) -> list[CheckResult]:
     """Run :data:`CHECKS` on the figure tables (all of :data:`pneunet_env.paper.figures.FIGURES` are needed)."""
-    from pneunet_env.paper.figures import FIGURES
-
     missing = [n for n in FIGURES if n not in tables]
     if missing:
         raise ValueError(f"the checks need every figure's data; missing {missing}")

@@ -1,4 +1,4 @@
-"""``pneunet-grasp figures``: regenerate the seed paper's figures (PNG + CSV) and check its statements.
+"""The seed paper's figures: computed as tables (CSV) and drawn (PNG).
 
 Every figure is computed, not drawn by hand: quasi-static pressure sweeps with
 :func:`pneunet_env.physics.solver.load_path` (loading from rest to ``p~ = 1.2``, the end of the paper's axes, then
@@ -30,12 +30,13 @@ columns of :data:`COLUMNS`. The pressure, curvature, force and stiffness columns
 (Table 1: 50 kPa, 5 mm, unless swept). Booleans are written as 0/1.
 
 The data functions are pure (parameters in, :class:`Table` out); plotting is separate and imports
-matplotlib only when called. :func:`generate` does everything and is what the command runs.
+matplotlib only when called. :func:`generate` computes, writes and returns every figure; the
+``pneunet-grasp figures`` command (:mod:`pneunet_env.paper.command`) runs it and then the statements of
+:mod:`pneunet_env.paper.checks`, which read these tables (this module imports neither of them).
 """
 
 from __future__ import annotations
 
-import argparse
 import csv
 import math
 import sys
@@ -1052,43 +1053,3 @@ def load_tables(directory: str | Path, names: Sequence[str] | None = None) -> di
         raise FileNotFoundError(f"{d}: missing {', '.join(m + '.csv' for m in missing)}; run "
                                 f"'pneunet-grasp figures --out {d}' first")
     return {n: read_table(d / f"{n}.csv") for n in names}
-
-
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--out", required=True, help="output folder (created): NAME.png, NAME.csv, paper_checks.md")
-    parser.add_argument("--quick", action="store_true", help="coarser grids (CI): well under a minute")
-    parser.add_argument("--only", nargs="+", metavar="NAME", choices=list(FIGURES),
-                        help=f"only these figures (default all: {', '.join(FIGURES)}); the checks need all")
-    parser.add_argument("--no-csv", action="store_true", help="write only the PNGs (and print the checks)")
-    parser.add_argument("--table-only", action="store_true",
-                        help="compute nothing: read the CSVs already in --out and print the checks' markdown table")
-    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
-
-
-def run(args: argparse.Namespace) -> int:
-    from pneunet_env.paper import checks as paper_checks
-
-    out = Path(args.out)
-    if args.table_only:
-        tables = load_tables(out)
-        print(paper_checks.render_markdown(paper_checks.run_checks(tables)))
-        return 0
-    report = generate(out, quick=args.quick, names=args.only, csv_files=not args.no_csv,
-                      show_progress=not args.no_progress)
-    for p in report.files:
-        print(f"wrote {p}")
-    print(f"{report.states} equilibria in {report.seconds:.1f} s; "
-          f"{report.unconverged} did not converge" + (" (see the 'converged' column)" if report.unconverged else ""))
-    status = 0 if report.unconverged == 0 else 1
-    if args.only is None:
-        results = paper_checks.run_checks(report.tables)
-        md = paper_checks.render_markdown(results)
-        if not args.no_csv:
-            (out / "paper_checks.md").write_text(md + "\n")
-            print(f"wrote {out / 'paper_checks.md'}")
-        print()
-        print(md)
-        if any(r.passed != r.expected for r in results):
-            print("\nsome checks disagree with their expected outcome (see the table)", file=sys.stderr)
-            status = 1
-    return status

@@ -30,48 +30,45 @@ from typing import NamedTuple
 
 import numpy as np
 
-from pneunet_env.physics import _jit, mechanics
+from pneunet_env.physics import _jit, contact, mechanics
 from pneunet_env.physics import solver as _solver
 from pneunet_env.physics._jit import HAVE_NUMBA
 from pneunet_env.physics.params import ActuatorParams
 from pneunet_env.physics.solver import (
+    ACCEPT_GTOL,
+    ARMIJO,
     DEFAULT_OPTIONS,
+    EASY_CORRECTOR_ITERATIONS,
+    ENERGY_ROUNDOFF,
+    ESCAPE_GRADIENT,
+    ESCAPE_STEP,
+    GROW,
+    LAST_STEP_SLACK,
+    MIN_STEP_LENGTH,
     PREDICTED_JUMP_FRACTION,
-    STATUS_MESSAGES,
+    SHRINK,
+    STATUS_CONVERGED,
+    STATUS_INACTIVE,
+    STATUS_LINE_SEARCH,
+    STATUS_MAX_ITER,
+    STATUS_OUTSIDE,
+    STATUS_ROUNDOFF,
+    STATUS_STALLED,
+    STEP_AFTER_FOLD,
+    Equilibrium,
     SolverOptions,
+    make_sym2,
     params_tuple,
     step_state,
 )
 
-__all__ = ["BatchEquilibrium", "BATCH_STATUS_MESSAGES", "BACKENDS", "PARALLEL_MIN_ENVS", "STATUS_INACTIVE",
-           "solve_batch", "solve_batch_numba", "solve_batch_numpy"]
-
-STATUS_INACTIVE = -1
-BATCH_STATUS_MESSAGES = {STATUS_INACTIVE: "not solved (inactive)", **STATUS_MESSAGES}
-"""``status`` codes of :class:`BatchEquilibrium`: :data:`~pneunet_env.physics.solver.STATUS_MESSAGES`, and -1."""
+__all__ = ["BACKENDS", "PARALLEL_MIN_ENVS", "solve_batch", "solve_batch_numba", "solve_batch_numpy"]
 
 BACKENDS = ("auto", "numba", "numpy")
 
 
-class BatchEquilibrium(NamedTuple):
-    """The result of :func:`solve_batch`: one entry per env (numpy arrays of shape ``(N,)``, fresh each call).
-
-    Attributes:
-        kappa: ``kappa~ = w kappa``, base curvature.
-        side_strain: ``e_s``.
-        energy: ``U/(mu t w^2)``.
-        gradient_norm: ``|grad U|_2`` at the result.
-        min_eigenvalue: the Hessian's smallest eigenvalue there.
-        iterations: Newton iterations spent (int64).
-        substeps: pressure sub-steps taken (int64).
-        snapped: a fold was crossed (the branch's minimum vanished and the state jumped).
-        converged: ``|grad| <= 1e-10`` and a positive-definite Hessian (``status`` 0 or 1).
-        status: :data:`BATCH_STATUS_MESSAGES` code (int64); -1 for an inactive env.
-        volume_change: ``(V1 - V0)/(w^2 t)`` at the result.
-
-    Inactive envs (``active[i]`` false) keep their input state, with NaN energy, gradient norm,
-    eigenvalue and volume change, zero counts, ``converged`` false and ``status`` -1.
-    """
+class _Raw(NamedTuple):
+    """The per-env outputs of a back-end, before :func:`_result` builds the :class:`Equilibrium`."""
 
     kappa: np.ndarray
     side_strain: np.ndarray
@@ -81,7 +78,6 @@ class BatchEquilibrium(NamedTuple):
     iterations: np.ndarray
     substeps: np.ndarray
     snapped: np.ndarray
-    converged: np.ndarray
     status: np.ndarray
     volume_change: np.ndarray
 
@@ -147,8 +143,8 @@ def _prepare(kappa, side_strain, p0, p1, object_stiffness, object_curvature, act
     return out, act
 
 
-def _check_domain(result: BatchEquilibrium, kappa: np.ndarray, side_strain: np.ndarray) -> None:
-    bad = result.status == 5
+def _check_domain(result: Equilibrium, kappa: np.ndarray, side_strain: np.ndarray) -> None:
+    bad = result.status == STATUS_OUTSIDE
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
         raise ValueError(
@@ -171,7 +167,7 @@ def solve_batch(
     backend: str = "auto",
     validate: bool = True,
     parallel: bool | None = None,
-) -> BatchEquilibrium:
+) -> Equilibrium:
     """Follow N equilibria from pressures ``p0`` to ``p1`` (quasi-static loading), all at once.
 
     Args:
@@ -184,7 +180,9 @@ def solve_batch(
         object_curvature: ``w kappa_obj`` in ``(0, pi)`` per env.
         params: the actuator (shared by all envs); paper defaults if ``None``.
         options: solver tolerances (shared).
-        active: optional boolean mask ``(N,)``; inactive envs are not solved (see :class:`BatchEquilibrium`).
+        active: optional boolean mask ``(N,)``; inactive envs are not solved: they keep their input state, with
+            NaN energy, gradient norm, eigenvalue and volume change, zero counts, ``converged`` false and
+            ``status`` -1 (``STATUS_INACTIVE``).
         backend: ``"auto"`` (numba if available, else numpy), ``"numba"`` or ``"numpy"``.
         validate: check the inputs (finite, signs, ranges) and raise ``ValueError`` naming the first
             bad value. A start state outside the domain always raises.
@@ -193,8 +191,8 @@ def solve_batch(
             OpenMP threads wait actively and lose badly when oversubscribed).
 
     Returns:
-        A :class:`BatchEquilibrium`; entry ``i`` equals ``solve_equilibrium(p1[i], ..., initial=(kappa[i],
-        side_strain[i]), initial_pressure=p0[i])`` to round-off.
+        An :class:`~pneunet_env.physics.solver.Equilibrium` of ``(N,)`` arrays (fresh each call); entry ``i``
+        equals ``solve_equilibrium(p1[i], ..., initial=(kappa[i], side_strain[i]), initial_pressure=p0[i])``.
     """
     if backend not in BACKENDS:
         raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
@@ -212,9 +210,23 @@ def solve_batch(
     return result
 
 
-def _allocate(k, s, active):
+def _result(raw: _Raw, p1, kobj, ko, chamber_height: float) -> Equilibrium:
+    """The :class:`Equilibrium` of a back-end's outputs: eq. 3.1 and ``e_m`` from the state, as the scalar
+    :func:`pneunet_env.physics.solver.equilibrium` computes them."""
+    with np.errstate(divide="ignore", invalid="ignore"):
+        delta, force, touching = contact.contact(raw.kappa, kobj, ko)
+    status = raw.status
+    return Equilibrium(
+        p1.copy(), raw.kappa, raw.side_strain, chamber_height * (1.0 + raw.side_strain) * raw.kappa, force, delta,
+        touching, raw.volume_change, raw.energy, raw.gradient_norm, raw.min_eigenvalue,
+        (status >= STATUS_CONVERGED) & (status <= STATUS_ROUNDOFF), raw.iterations, raw.substeps, raw.snapped,
+        status, kobj.copy(), ko.copy(),
+    )
+
+
+def _allocate(k, s) -> _Raw:
     n = k.shape[0]
-    return BatchEquilibrium(
+    return _Raw(
         kappa=k.copy(),
         side_strain=s.copy(),
         energy=np.full(n, np.nan),
@@ -223,7 +235,6 @@ def _allocate(k, s, active):
         iterations=np.zeros(n, dtype=np.int64),
         substeps=np.zeros(n, dtype=np.int64),
         snapped=np.zeros(n, dtype=bool),
-        converged=np.zeros(n, dtype=bool),
         status=np.full(n, STATUS_INACTIVE, dtype=np.int64),
         volume_change=np.full(n, np.nan),
     )
@@ -240,7 +251,7 @@ def _source_stamp() -> int | None:
     they cannot be read (then the loop is not cached)."""
     h = hashlib.sha256()
     try:
-        for module in (mechanics, _solver, _jit, sys.modules[__name__]):
+        for module in (mechanics, contact, _solver, _jit, sys.modules[__name__]):
             h.update(Path(module.__file__).read_bytes())
     except (OSError, TypeError):
         return None
@@ -251,7 +262,7 @@ def _make_loop(stamp: int, variant: int):
     # ``stamp`` and ``variant`` are closure variables, so they are part of the key of numba's on-disk cache:
     # an edit of the solver or the energy recompiles the loop instead of loading a stale one, and the
     # serial and parallel loops (same code, same name) get separate entries.
-    def _loop(k, s, p0, p1, kobj, ko, prm, opts, active, ok, os_, oU, og, ol, oit, osub, osnap, oconv, ost, odv):
+    def _loop(k, s, p0, p1, kobj, ko, prm, opts, active, ok, os_, oU, og, ol, oit, osub, osnap, ost, odv):
         if stamp < 0 or variant < 0:
             return
         for i in numba.prange(k.shape[0]):
@@ -266,7 +277,6 @@ def _make_loop(stamp: int, variant: int):
                 osub[i] = r[6]
                 osnap[i] = r[7]
                 ost[i] = r[8]
-                oconv[i] = r[8] <= 1
                 odv[i] = r[9]
 
     return _loop
@@ -283,7 +293,7 @@ if HAVE_NUMBA:
     _loop_parallel = numba.njit(_make_loop(_stamp or 0, 1), nogil=True, parallel=True, cache=_cache)
 
 
-def solve_batch_numba(k, s, p0, p1, kobj, ko, prm, opts, active, parallel: bool | None = None) -> BatchEquilibrium:
+def solve_batch_numba(k, s, p0, p1, kobj, ko, prm, opts, active, parallel: bool | None = None) -> Equilibrium:
     """The compiled back-end on prepared float64 arrays (no validation; see :func:`solve_batch`).
 
     ``prm`` is :func:`pneunet_env.physics.solver.params_tuple`, ``opts`` :meth:`SolverOptions.as_tuple`.
@@ -292,13 +302,13 @@ def solve_batch_numba(k, s, p0, p1, kobj, ko, prm, opts, active, parallel: bool 
     """
     if not HAVE_NUMBA:
         raise RuntimeError("the numba back-end needs numba")
-    out = _allocate(k, s, active)
+    out = _allocate(k, s)
     if parallel is None:
         parallel = k.shape[0] >= PARALLEL_MIN_ENVS
     loop = _loop_parallel if parallel else _loop_serial
     loop(k, s, p0, p1, kobj, ko, prm, opts, active, out.kappa, out.side_strain, out.energy, out.gradient_norm,
-         out.min_eigenvalue, out.iterations, out.substeps, out.snapped, out.converged, out.status, out.volume_change)
-    return out
+         out.min_eigenvalue, out.iterations, out.substeps, out.snapped, out.status, out.volume_change)
+    return _result(out, p1, kobj, ko, prm[0])
 
 
 # --------------------------------------------------------------------------------------------------
@@ -319,24 +329,7 @@ _DONE = 7
 _POLISH, _CORRECTOR, _FOLD = 0, 1, 2
 
 
-def _sym2_eigvals(a, b, c):
-    """Vectorised :func:`pneunet_env.physics.solver.sym2_eigvals`."""
-    m = 0.5 * (a + c)
-    r = np.hypot(0.5 * (a - c), b)
-    lmax = m + r
-    lmin = m - r
-    det = a * c - b * b
-    pos = (m > 0.0) & (lmax > 0.0)
-    neg = ~pos & (m < 0.0) & (lmin < 0.0)
-    lmin = np.where(pos, det / np.where(pos, lmax, 1.0), lmin)
-    lmax = np.where(neg, det / np.where(neg, lmin, 1.0), lmax)
-    return lmin, lmax
-
-
-def _sym2_eigvec(a, b, c):
-    """The eigenvector ``(cos t, sin t)`` of the larger eigenvalue, as :func:`pneunet_env.physics.solver.sym2_eig`."""
-    t = 0.5 * np.arctan2(2.0 * b, a - c)
-    return np.cos(t), np.sin(t)
+_sym2_eigvals, _sym2_eigvec = make_sym2(np.hypot, np.arctan2, np.cos, np.sin, np.where)
 
 
 class _Machine:
@@ -366,14 +359,14 @@ class _Machine:
             setattr(self, name, np.zeros(n, dtype=bool))
 
 
-def solve_batch_numpy(k, s, p0, p1, kobj, ko, prm, opts, active) -> BatchEquilibrium:
+def solve_batch_numpy(k, s, p0, p1, kobj, ko, prm, opts, active) -> Equilibrium:
     """The vectorised (numpy-only) back-end on prepared float64 arrays (no validation; see :func:`solve_batch`).
 
     ``prm`` is :func:`pneunet_env.physics.solver.params_tuple`, ``opts`` :meth:`SolverOptions.as_tuple`.
     """
     gtol, max_iter, corr_iter, max_step, min_step, max_jump, eig_floor = opts
     n = k.shape[0]
-    out = _allocate(k, s, active)
+    out = _allocate(k, s)
     m = _Machine(n)
     m.pos[:] = _DONE
     idx = np.flatnonzero(active)
@@ -407,9 +400,8 @@ def solve_batch_numpy(k, s, p0, p1, kobj, ko, prm, opts, active) -> BatchEquilib
     out.gradient_norm[a], out.min_eigenvalue[a] = m.bgn[a], m.blmin[a]
     out.iterations[a], out.substeps[a], out.snapped[a] = m.iters[a], m.substeps[a], m.snapped[a]
     out.status[a] = m.bstatus[a]
-    out.converged[a] = m.bstatus[a] <= 1
     out.volume_change[a] = np.where(m.bok[a], m.bdv[a], np.nan)
-    return out
+    return _result(out, p1, kobj, ko, prm[0])
 
 
 def _set_iterate(m: _Machine, i, kk, ss, ev_i) -> None:
@@ -436,10 +428,10 @@ def _after_evaluation(m: _Machine, need: np.ndarray, ev) -> None:
     i = need[sel]
     _set_iterate(m, i, m.xk[i], m.xs[i], tuple(np.asarray(v)[sel] for v in ev))
     m.it[i] = 0
-    m.dstatus[i] = 2
+    m.dstatus[i] = STATUS_MAX_ITER
     bad = ~ok[sel]
     j = i[bad]  # start outside the domain: descend returns (k, s, inf, inf, -inf, 0, 5)
-    m.U[j], m.gn[j], m.lmin[j], m.dstatus[j] = np.inf, np.inf, -np.inf, 5
+    m.U[j], m.gn[j], m.lmin[j], m.dstatus[j] = np.inf, np.inf, -np.inf, STATUS_OUTSIDE
     m.pos[j] = _D_END
     m.pos[i[~bad]] = _D_CHECK
 
@@ -453,17 +445,18 @@ def _after_evaluation(m: _Machine, need: np.ndarray, ev) -> None:
     Un = evs[1]
     nnorm = np.hypot(evs[2], evs[3])
     U, t, gn = m.U[i], m.t[i], m.gn[i]
-    armijo = (Un <= U + 1e-4 * t * m.slope[i]) | ((np.abs(Un - U) <= 1e-13 * np.maximum(1.0, np.abs(U))) & (nnorm < gn))
+    armijo = (Un <= U + ARMIJO * t * m.slope[i]) | (
+        (np.abs(Un - U) <= ENERGY_ROUNDOFF * np.maximum(1.0, np.abs(U))) & (nnorm < gn))
     acc = tok & armijo
     # Rejected: halve the step, or give up (status 3).
     r = i[~acc]
     m.t[r] *= 0.5
-    more = m.t[r] > 1e-14
+    more = m.t[r] > MIN_STEP_LENGTH
     rr = r[more]
     _trial_point(m, rr)
     m.pos[rr] = _E_TRIAL
     rf = r[~more]
-    m.dstatus[rf] = 3
+    m.dstatus[rf] = STATUS_LINE_SEARCH
     m.pos[rf] = _D_END
     # Accepted: the trial becomes the iterate.
     a = i[acc]
@@ -471,7 +464,7 @@ def _after_evaluation(m: _Machine, need: np.ndarray, ev) -> None:
         moved = np.abs(m.kn[a] - m.k[a]) + np.abs(m.sn[a] - m.s[a])
         _set_iterate(m, a, m.kn[a], m.sn[a], tuple(v[acc] for v in evs))
         stalled = moved == 0.0
-        m.dstatus[a[stalled]] = 4
+        m.dstatus[a[stalled]] = STATUS_STALLED
         far = np.maximum(np.abs(m.k[a] - m.k0[a]), np.abs(m.s[a] - m.s0[a])) > m.radius[a]
         guarded = (m.radius[a] < np.inf) & ((m.lmin[a] <= 0.0) | far)
         m.pos[a] = np.where(stalled | guarded, _D_END, _D_CHECK)
@@ -492,7 +485,7 @@ def _descend_check(m: _Machine, gtol: float, eig_floor: float) -> bool:
         return False
     gn, lmin, lmax = m.gn[i], m.lmin[i], m.lmax[i]
     conv = (gn <= gtol) & (lmin > 0.0)
-    m.dstatus[i[conv]] = 0
+    m.dstatus[i[conv]] = STATUS_CONVERGED
     limit = ~conv & (m.it[i] >= m.maxit[i])
     m.pos[i[conv | limit]] = _D_END
     go = ~(conv | limit)
@@ -514,10 +507,10 @@ def _descend_check(m: _Machine, gtol: float, eig_floor: float) -> bool:
     d0 = np.where(newton, (hks * g1 - hss * g0) / det, -(a2 / l2) * ct + (a1 / l1) * st)
     d1 = np.where(newton, (hks * g0 - hkk * g1) / det, -(a2 / l2) * st - (a1 / l1) * ct)
     slope = g0 * d0 + g1 * d1
-    neg = (lmin <= 0.0) & (gn <= 1e3 * gtol)
+    neg = (lmin <= 0.0) & (gn <= ESCAPE_GRADIENT * gtol)
     if neg.any():
         v0, v1 = -st, ct
-        step = 1e-3 * np.maximum(1.0, np.abs(m.k[i]))
+        step = ESCAPE_STEP * np.maximum(1.0, np.abs(m.k[i]))
         step = np.where(g0 * v0 + g1 * v1 > 0.0, -step, step)
         nd0, nd1 = step * v0, step * v1
         d0 = np.where(neg, nd0, d0)
@@ -535,8 +528,8 @@ def _descend_end(m: _Machine, p1, max_iter, min_step, max_step, max_jump) -> boo
     if i.size == 0:
         return False
     # descend's epilogue.
-    floor = (m.dstatus[i] != 0) & (m.gn[i] <= 1e-10) & (m.lmin[i] > 0.0)
-    m.dstatus[i[floor]] = 1
+    floor = (m.dstatus[i] != STATUS_CONVERGED) & (m.gn[i] <= ACCEPT_GTOL) & (m.lmin[i] > 0.0)
+    m.dstatus[i[floor]] = STATUS_ROUNDOFF
     mode = m.mode[i]
     m.iters[i] += m.it[i]
 
@@ -548,18 +541,18 @@ def _descend_end(m: _Machine, p1, max_iter, min_step, max_step, max_jump) -> boo
     # A corrector: accept the sub-step on the same branch, else shrink it, else a fold.
     c = i[mode == _CORRECTOR]
     jump = np.maximum(np.abs(m.k[c] - m.bk[c]), np.abs(m.s[c] - m.bs[c]))
-    acc = (m.dstatus[c] <= 1) & (jump <= max_jump)
+    acc = (m.dstatus[c] <= STATUS_ROUNDOFF) & (jump <= max_jump)
     ca = c[acc]
     m.p[ca] = m.pt[ca]
     _accept(m, ca)
     m.substeps[ca] += 1
-    grow = ca[m.it[ca] <= 4]
-    m.h[grow] = np.minimum(2.0 * m.h[grow], max_step)
+    grow = ca[m.it[ca] <= EASY_CORRECTOR_ITERATIONS]
+    m.h[grow] = np.minimum(GROW * m.h[grow], max_step)
     m.pos[ca] = _F_LOOP
     cr = c[~acc]
     shrink = m.h[cr] > min_step
     cs = cr[shrink]
-    m.h[cs] = np.maximum(0.25 * m.h[cs], min_step)
+    m.h[cs] = np.maximum(SHRINK * m.h[cs], min_step)
     m.pos[cs] = _F_LOOP
     cf = cr[~shrink]  # the branch ends: descend fully from the branch point at pt
     m.xk[cf], m.xs[cf], m.xp[cf] = m.bk[cf], m.bs[cf], m.pt[cf]
@@ -574,7 +567,7 @@ def _descend_end(m: _Machine, p1, max_iter, min_step, max_step, max_jump) -> boo
     m.snapped[f] |= np.maximum(np.abs(m.k[f] - m.bk[f]), np.abs(m.s[f] - m.bs[f])) > max_jump
     m.p[f] = m.pt[f]
     _accept(m, f)
-    m.h[f] = 0.1 * max_step
+    m.h[f] = STEP_AFTER_FOLD * max_step
     m.pos[f] = _F_LOOP
     return True
 
@@ -591,7 +584,7 @@ def _follow_loop(m: _Machine, p1, corr_iter, min_step, max_jump) -> bool:
     i = np.flatnonzero(m.pos == _F_LOOP)
     if i.size == 0:
         return False
-    done = (m.p[i] == p1[i]) | (m.bstatus[i] > 1)
+    done = (m.p[i] == p1[i]) | (m.bstatus[i] > STATUS_ROUNDOFF)
     m.pos[i[done]] = _DONE
     i = i[~done]
     if i.size == 0:
@@ -608,7 +601,7 @@ def _follow_loop(m: _Machine, p1, corr_iter, min_step, max_jump) -> bool:
     m.h[i] = h
     p = m.p[i]
     remaining = np.abs(p1[i] - p)
-    pt = np.where(h >= remaining * (1.0 - 1e-12), p1[i], p + m.sign[i] * h)
+    pt = np.where(h >= remaining * (1.0 - LAST_STEP_SLACK), p1[i], p + m.sign[i] * h)
     m.pt[i] = pt
     bk, bs = m.bk[i], m.bs[i]
     m.xk[i] = np.where(tangent, bk + (pt - p) * tk, bk)

@@ -16,18 +16,46 @@ full model (a nonlinear effect) already makes it wrong, which the solver study m
 
 ``K`` and ``g`` are closed-form; ``Q`` is the exact second derivative of the model's chamber volume at
 rest, evaluated from :mod:`pneunet_env.physics.mechanics`.
+
+With an object in contact, the Winkler term ``(k~/2)(1/kappa_obj - 1/kappa)^2`` is replaced by its own quadratic
+expansion about first contact, ``(k~/2)(kappa - kappa_obj)^2 / kappa_obj^4``, so the model stays one 2x2 linear
+solve (:func:`linear_state`; the contact is found by solving without the object first: the model is piecewise
+linear). :func:`linear_equilibrium` returns that state as an :class:`~pneunet_env.physics.solver.Equilibrium`;
+:func:`linear_error_estimate` estimates its distance to the full model's equilibrium by one Newton step of the
+full energy, and :func:`linear_reach` the pressure up to which the free actuator's linear state is within a
+tolerance. (The solver study's ``auto`` model, :mod:`pneunet_env.bench.models`, is built on these.)
 """
 
 from __future__ import annotations
 
 import math
+from functools import lru_cache
 
 import numpy as np
 
 from pneunet_env.physics import mechanics
-from pneunet_env.physics.params import ActuatorParams
+from pneunet_env.physics.contact import scalar_contact
+from pneunet_env.physics.params import ActuatorParams, check_object
+from pneunet_env.physics.solver import STATUS_CONVERGED, Equilibrium, check_pressure, params_tuple
+from pneunet_env.physics.solver import _evaluate as _kernel  # the compiled energy kernel (numba when installed)
 
-__all__ = ["LinearModel"]
+__all__ = [
+    "LinearModel",
+    "ESTIMATE_SAFETY",
+    "linear_state",
+    "linear_equilibrium",
+    "linear_state_equilibrium",
+    "linear_error_estimate",
+    "linear_reach",
+]
+
+ESTIMATE_SAFETY = 0.9
+"""A linear state counts as within ``tol`` of the full one when its estimated error is below this fraction of ``tol``.
+
+The one-Newton-step estimate (:func:`linear_error_estimate`) is exact to second order and slightly low: at the
+paper's defaults it under-estimates the true error by 0.2 % at 1e-3 and 2.3 % at 1e-2 (free actuator), so 0.9
+keeps the accepted error below the tolerance with room to spare.
+"""
 
 
 class LinearModel:
@@ -88,3 +116,140 @@ class LinearModel:
     def curvature(self, pressure):
         """Closed-form ``kappa~(p~)`` of the quadratic energy; ``p g_k / K_kk + O(p^2)`` (eq. 17)."""
         return self.state(pressure)[0]
+
+
+_DEFAULT_PARAMS = ActuatorParams()
+
+
+@lru_cache(maxsize=128)
+def _linear_coefficients(params: ActuatorParams) -> tuple[float, ...]:
+    """``(K11, K12, K22, Q11, Q12, Q22, g0, g1)`` of :class:`LinearModel` as floats (cached per actuator)."""
+    lm = LinearModel(params)
+    K, Q, g = lm.stiffness, lm.volume_hessian, lm.volume_gradient
+    return (float(K[0, 0]), float(K[0, 1]), float(K[1, 1]), float(Q[0, 0]), float(Q[0, 1]), float(Q[1, 1]),
+            float(g[0]), float(g[1]))
+
+
+def _solve2(a: float, b: float, c: float, r0: float, r1: float) -> tuple[float, float, float]:
+    """Solve ``[[a, b], [b, c]] x = r``; also return the matrix's smallest eigenvalue (x NaN unless PD)."""
+    m = 0.5 * (a + c)
+    lmin = m - math.hypot(0.5 * (a - c), b)
+    det = a * c - b * b
+    if not (lmin > 0.0 and det > 0.0):
+        return math.nan, math.nan, lmin
+    return (c * r0 - b * r1) / det, (a * r1 - b * r0) / det, lmin
+
+
+def linear_state(
+    pressure: float, object_stiffness: float, object_curvature: float, params: ActuatorParams
+) -> tuple[float, float, float, float, float]:
+    """The linear model's minimiser at ``p~`` (floats, no validation).
+
+    Returns ``(kappa~, e_s, lam_min, energy, volume_change)`` of the quadratic model (with the object's
+    linearised Winkler term when the free linear state is past ``object_curvature``). ``kappa~`` and
+    ``e_s`` are NaN where the model's Hessian is not positive definite (beyond :attr:`LinearModel.valid_until`).
+    """
+    K11, K12, K22, Q11, Q12, Q22, g0, g1 = _linear_coefficients(params)
+    p = pressure
+    a, b, c = K11 - p * Q11, K12 - p * Q12, K22 - p * Q22
+    k, s, lmin = _solve2(a, b, c, p * g0, p * g1)
+    cw = 0.0
+    if object_stiffness > 0.0 and k > object_curvature:
+        # In contact: add the Winkler term expanded about first contact, (c/2)(k - ko)^2, c = k_obj / ko^4.
+        ko = object_curvature
+        cw = object_stiffness / ko**4
+        k, s, lmin = _solve2(a + cw, b, c, p * g0 + cw * ko, p * g1)
+    if math.isnan(k):
+        return math.nan, math.nan, lmin, math.nan, math.nan
+    vol = g0 * k + g1 * s + 0.5 * (Q11 * k * k + 2.0 * Q12 * k * s + Q22 * s * s)
+    el = 0.5 * (K11 * k * k + 2.0 * K12 * k * s + K22 * s * s)
+    if cw > 0.0:
+        el += 0.5 * cw * (k - object_curvature) ** 2
+    return k, s, lmin, el - p * vol, vol
+
+
+def linear_equilibrium(
+    pressure: float,
+    object_stiffness: float = 0.0,
+    object_curvature: float = 0.02,
+    params: ActuatorParams | None = None,
+) -> Equilibrium:
+    """The linear model's equilibrium at ``p~`` (closed form, history-free), as an :class:`Equilibrium`.
+
+    ``energy``, ``volume_change`` and ``min_eigenvalue`` are those of the quadratic model, ``gradient_norm`` is 0
+    (the closed form is its exact minimiser), ``status`` is ``STATUS_CONVERGED`` with no iterations or sub-steps;
+    ``contact_force`` and ``indentation`` follow eq. 3.1 from the state, as for the full model. Its distance to
+    the full model's equilibrium is not part of it: see :func:`linear_error_estimate`.
+
+    Raises ``ValueError`` for invalid input, and for a pressure at or beyond the linear model's validity
+    (:attr:`LinearModel.valid_until`, ``p~ ~ 1.71`` at the paper's defaults) where its energy has no minimum.
+    """
+    params = _DEFAULT_PARAMS if params is None else params
+    p = check_pressure(pressure)
+    kobj, ko = check_object(object_stiffness, object_curvature)
+    k, s, lmin, energy, vol = linear_state(p, kobj, ko, params)
+    if math.isnan(k):
+        raise ValueError(
+            f"pressure p~={p!r} is beyond the linear model's validity (its Hessian is not positive definite "
+            f"there; valid below p~={LinearModel(params).valid_until:.4g} without contact)"
+        )
+    return linear_state_equilibrium(p, (k, s, lmin, energy, vol), kobj, ko, params)
+
+
+def linear_state_equilibrium(
+    pressure: float, state: tuple[float, float, float, float, float], object_stiffness: float,
+    object_curvature: float, params: ActuatorParams,
+) -> Equilibrium:
+    """The :class:`Equilibrium` of a finite :func:`linear_state` result ``state`` (no validation; see
+    :func:`linear_equilibrium`)."""
+    k, s, lmin, energy, vol = state
+    delta, force, touching = scalar_contact(k, object_stiffness, object_curvature)
+    return Equilibrium(
+        pressure, k, s, params.chamber_height * (1.0 + s) * k, force, delta, touching, vol, energy,
+        0.0,  # gradient_norm: the closed form is the quadratic model's exact minimiser
+        lmin, True, 0, 0, False, STATUS_CONVERGED, object_stiffness, object_curvature,
+    )
+
+
+def linear_error_estimate(
+    kappa: float, side_strain: float, pressure: float, object_stiffness: float, object_curvature: float,
+    params: ActuatorParams,
+) -> float:
+    """Estimated distance ``max(|d kappa~|, |d e_s|)`` from ``(kappa~, e_s)`` to the full model's equilibrium.
+
+    One Newton step of the full energy: ``|H^-1 grad U|_inf`` (error of the estimate: second order in the
+    distance). ``inf`` if the state is outside the domain, the full Hessian there is not positive
+    definite, or the step crosses contact onset (where the Hessian jumps and the estimate is unreliable).
+    """
+    ok, _, gk, gs, hkk, hks, hss, *_ = _kernel(
+        float(kappa), float(side_strain), float(pressure), params_tuple(params), float(object_stiffness),
+        float(object_curvature),
+    )
+    if not ok:
+        return math.inf
+    dk, ds, lmin = _solve2(hkk, hks, hss, gk, gs)
+    if not lmin > 0.0 or math.isnan(dk):
+        return math.inf
+    if object_stiffness > 0.0 and (kappa - object_curvature) * (kappa - dk - object_curvature) < 0.0:
+        return math.inf
+    return max(abs(dk), abs(ds))
+
+
+@lru_cache(maxsize=256)
+def linear_reach(params: ActuatorParams, tolerance: float, step: float = 1e-3) -> float:
+    """The largest pressure up to which the free actuator's linear state is within ``tolerance`` of the full one.
+
+    (Within ``ESTIMATE_SAFETY * tolerance`` by the error estimate: :data:`ESTIMATE_SAFETY`.)
+
+    Scans ``p~ = step, 2 step, ...`` with :func:`linear_error_estimate` (no full solve; a few ms, cached per
+    ``(params, tolerance)``).
+    """
+    valid = LinearModel(params).valid_until
+    i = 0
+    while (i + 1) * step < valid:
+        p = (i + 1) * step
+        k, s, *_ = linear_state(p, 0.0, 1.0, params)
+        if math.isnan(k) or linear_error_estimate(k, s, p, 0.0, 1.0, params) > ESTIMATE_SAFETY * tolerance:
+            break
+        i += 1
+    return i * step

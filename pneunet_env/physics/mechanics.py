@@ -29,6 +29,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from pneunet_env.physics.contact import make_contact
 from pneunet_env.physics.params import ActuatorParams
 
 __all__ = [
@@ -42,8 +43,6 @@ __all__ = [
     "volume_gradient",
     "top_strain",
     "first_invariant",
-    "contact_force",
-    "indentation",
     "kcot_half",
     "make_terms",
     "scalar_terms",
@@ -75,6 +74,8 @@ def make_terms(log, sin, cos, where, maximum, fabs, jit=_identity):
       ``k = kappa~``, side strain ``s = e_s``, pressure ``p~``, the seven :class:`ActuatorParams`
       fields, the object's ``k~_obj`` and ``w kappa_obj``.
     """
+
+    indentation = make_contact(maximum, where, jit)[0]
 
     @jit
     def kcot(k):
@@ -151,7 +152,7 @@ def make_terms(log, sin, cos, where, maximum, fabs, jit=_identity):
         wm, wm1, wm2 = gent(em, J)
         kb = eb * hb**3 / (12.0 * (1.0 - nu * nu))
         kk = maximum(k, ko)
-        delta = maximum(k - ko, 0.0) / (kk * ko)  # indentation 1/ko - 1/k in contact, else 0
+        delta = indentation(k, ko)  # eq. 3.1: 1/ko - 1/k in contact, else 0
         contact = where(k > ko, 1.0, 0.0)
 
         U = -p * dv + 0.5 * kb * k * k + d * hs * ws + hm * wm + 0.5 * kobj * delta * delta
@@ -267,13 +268,3 @@ def top_strain(kappa, side_strain, params: ActuatorParams):
     """The top wall's strain ``e_m = d (1 + e_s) kappa~`` (eq. 2.2)."""
     return params.chamber_height * (1.0 + np.asarray(side_strain, dtype=float)) * np.asarray(kappa, dtype=float)
 
-
-def indentation(kappa, object_curvature):
-    """The object's indentation ``delta~ = w (1/kappa_obj - 1/kappa)`` while in contact, else 0 (units ``w``)."""
-    k = np.asarray(kappa, dtype=float)
-    return np.maximum(k - object_curvature, 0.0) / (np.maximum(k, object_curvature) * object_curvature)
-
-
-def contact_force(kappa, object_stiffness, object_curvature):
-    """The contact traction ``F~ = F/mu = k~_obj delta~`` (eq. 3.1); 0 out of contact."""
-    return object_stiffness * indentation(kappa, object_curvature)

@@ -24,41 +24,96 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from pneunet_env.physics import mechanics
 from pneunet_env.physics._jit import njit
+from pneunet_env.physics.contact import scalar_contact
 from pneunet_env.physics.params import ActuatorParams, check_finite, check_object
 
 __all__ = [
     "SolverOptions",
+    "DEFAULT_OPTIONS",
     "Equilibrium",
     "LoadPath",
     "STATUS_MESSAGES",
+    "status_message",
     "make_solver",
+    "make_sym2",
     "minimise_state",
     "solve_equilibrium",
     "load_path",
-    "sym2_eig",
+    "equilibrium",
     "sym2_eigvals",
-    "ACCEPT_GTOL",
+    "sym2_eigvec",
     "step_state",
     "params_tuple",
-    "PREDICTED_JUMP_FRACTION",
+    "check_pressure",
+    "ACCEPT_GTOL",
 ]
+
+# ---- The algorithm's constants, defined once (the compiled scalar form and the masked array form in
+# :mod:`pneunet_env.physics.batched` both read them; numba freezes them at compile time).
 
 ACCEPT_GTOL = 1e-10
 """Every state reported ``converged`` has ``|grad|_2`` at most this and a positive-definite Hessian."""
+ARMIJO = 1e-4
+"""Armijo's sufficient-decrease constant: a trial step ``t d`` is accepted if ``U <= U0 + ARMIJO t g.d``."""
+MIN_STEP_LENGTH = 1e-14
+"""The line search halves ``t`` while ``t > MIN_STEP_LENGTH``; then it has failed (status 3)."""
+ENERGY_ROUNDOFF = 1e-13
+"""Relative energy change below which the energy cannot rank two points: the line search then takes ``|grad|``."""
+ESCAPE_GRADIENT = 1e3
+"""A state with ``|grad| <= ESCAPE_GRADIENT gtol`` and a Hessian that is not positive definite is (near) a
+saddle: the descent leaves it along the negative-curvature direction."""
+ESCAPE_STEP = 1e-3
+"""Length of that escape step, relative to ``max(1, |kappa~|)``."""
+PREDICTED_JUMP_FRACTION = 0.75
+"""A sub-step is sized so that the tangent predicts a state change of at most this fraction of ``max_jump``."""
+EASY_CORRECTOR_ITERATIONS = 4
+"""A corrector that converges within this many iterations doubles the next sub-step (up to ``max_step``)."""
+GROW = 2.0
+"""Sub-step growth after an easy corrector."""
+SHRINK = 0.25
+"""Sub-step shrink after a failed corrector (down to ``min_step``)."""
+STEP_AFTER_FOLD = 0.1
+"""After a snap-through the next sub-step is this fraction of ``max_step``."""
+LAST_STEP_SLACK = 1e-12
+"""A sub-step within this relative slack of the remaining pressure lands exactly on the target."""
 
+STATUS_INACTIVE = -1
+STATUS_CONVERGED = 0
+STATUS_ROUNDOFF = 1
+STATUS_MAX_ITER = 2
+STATUS_LINE_SEARCH = 3
+STATUS_STALLED = 4
+STATUS_OUTSIDE = 5
 STATUS_MESSAGES = {
-    0: "converged",
-    1: "converged at the round-off floor",
-    2: "iteration limit reached",
-    3: "line search failed",
-    4: "stalled",
-    5: "start point outside the domain",
+    STATUS_INACTIVE: "not solved (inactive)",
+    STATUS_CONVERGED: "converged",
+    STATUS_ROUNDOFF: "converged at the round-off floor",
+    STATUS_MAX_ITER: "iteration limit reached",
+    STATUS_LINE_SEARCH: "line search failed",
+    STATUS_STALLED: "stalled",
+    STATUS_OUTSIDE: "start point outside the domain",
 }
+"""What each ``status`` code means; ``status <= STATUS_ROUNDOFF`` (and ``>= 0``) is converged. ``-1``: an env of a
+batch that was not solved (masked out)."""
+_STATUS_ARRAY = np.array([STATUS_MESSAGES[c] for c in range(-1, max(STATUS_MESSAGES) + 1)], dtype=object)
+
+
+def status_message(status):
+    """The message of a ``status`` code (a string), or of an array of codes (an object array of strings)."""
+    if isinstance(status, np.ndarray):
+        return _STATUS_ARRAY[status + 1]
+    return STATUS_MESSAGES[int(status)]
+
+
+MAX_ITERATIONS = 100_000
+"""Upper bound of ``SolverOptions.max_iter`` and ``corrector_max_iter`` (a compiled int64 loop counter; a descent that
+needs more than this has failed anyway)."""
 
 
 @dataclass(frozen=True)
@@ -91,8 +146,16 @@ class SolverOptions:
             if v <= 0.0:
                 raise ValueError(f"SolverOptions.{name} must be > 0, got {v!r}")
         for name in ("max_iter", "corrector_max_iter"):
-            if int(getattr(self, name)) < 1:
-                raise ValueError(f"SolverOptions.{name} must be >= 1, got {getattr(self, name)!r}")
+            v = getattr(self, name)
+            try:
+                i = int(v)
+            except (TypeError, ValueError, OverflowError):
+                raise ValueError(f"SolverOptions.{name} must be an integer, got {v!r}") from None
+            if isinstance(v, bool) or i != v:
+                raise ValueError(f"SolverOptions.{name} must be an integer, got {v!r}")
+            if not 1 <= i <= MAX_ITERATIONS:
+                raise ValueError(f"SolverOptions.{name} must be in [1, {MAX_ITERATIONS}], got {v!r}")
+            object.__setattr__(self, name, i)
         if self.min_step > self.max_step:
             raise ValueError(f"SolverOptions.min_step={self.min_step!r} exceeds max_step={self.max_step!r}")
 
@@ -112,41 +175,37 @@ DEFAULT_OPTIONS = SolverOptions()
 _DEFAULT_OPTIONS_TUPLE = DEFAULT_OPTIONS.as_tuple()
 
 
-@njit
-def sym2_eig(a, b, c):
-    """Eigen-decomposition of the symmetric 2x2 matrix ``[[a, b], [b, c]]``.
+def make_sym2(hypot, atan2, cos, sin, where, jit=mechanics._identity):
+    """Build ``(eigvals, eigvec)`` of the symmetric 2x2 matrix ``[[a, b], [b, c]]`` from elementary operations.
 
-    Returns ``(lam_min, lam_max, cos t, sin t)``: ``(cos t, sin t)`` is the eigenvector of ``lam_max``
-    and ``(-sin t, cos t)`` that of ``lam_min``.
+    Written once, instantiated twice: on floats (:func:`sym2_eigvals`, :func:`sym2_eigvec`, compiled with numba)
+    and on numpy arrays (for :mod:`pneunet_env.physics.batched`). ``eigvals -> (lam_min, lam_max)``: the smaller
+    one of a well-conditioned definite matrix is taken as ``det / lam_max`` (no cancellation). ``eigvec -> (cos t,
+    sin t)``, the eigenvector of ``lam_max``; ``(-sin t, cos t)`` is that of ``lam_min``.
     """
-    m = 0.5 * (a + c)
-    r = math.hypot(0.5 * (a - c), b)
-    lmax = m + r
-    lmin = m - r
-    if m > 0.0 and lmax > 0.0:
-        lmin = (a * c - b * b) / lmax  # no cancellation when the matrix is ill-conditioned
-    elif m < 0.0 and lmin < 0.0:
-        lmax = (a * c - b * b) / lmin
-    t = 0.5 * math.atan2(2.0 * b, a - c)
-    return lmin, lmax, math.cos(t), math.sin(t)
+
+    @jit
+    def eigvals(a, b, c):
+        m = 0.5 * (a + c)
+        r = hypot(0.5 * (a - c), b)
+        lmax = m + r
+        lmin = m - r
+        det = a * c - b * b
+        pos = (m > 0.0) & (lmax > 0.0)
+        neg = (m < 0.0) & (lmin < 0.0)  # excludes pos (m > 0 there), so lmin is still m - r here
+        lmin2 = where(pos, det / where(pos, lmax, 1.0), lmin)
+        lmax2 = where(neg, det / where(neg, lmin, 1.0), lmax)
+        return lmin2, lmax2
+
+    @jit
+    def eigvec(a, b, c):
+        t = 0.5 * atan2(2.0 * b, a - c)
+        return cos(t), sin(t)
+
+    return eigvals, eigvec
 
 
-@njit
-def sym2_eigvals(a, b, c):
-    """``(lam_min, lam_max)`` of ``[[a, b], [b, c]]``, as :func:`sym2_eig` computes them (no eigenvectors)."""
-    m = 0.5 * (a + c)
-    r = math.hypot(0.5 * (a - c), b)
-    lmax = m + r
-    lmin = m - r
-    if m > 0.0 and lmax > 0.0:
-        lmin = (a * c - b * b) / lmax
-    elif m < 0.0 and lmin < 0.0:
-        lmax = (a * c - b * b) / lmin
-    return lmin, lmax
-
-
-PREDICTED_JUMP_FRACTION = 0.75
-"""A sub-step is sized so that the tangent predicts a state change of at most this fraction of ``max_jump``."""
+sym2_eigvals, sym2_eigvec = make_sym2(math.hypot, math.atan2, math.cos, math.sin, njit(mechanics._swhere), njit)
 
 
 def _make_parts(terms, jit=njit):
@@ -168,14 +227,14 @@ def _make_parts(terms, jit=njit):
         # from (k0, s0) or has a Hessian that is not positive definite.
         ok, U, g0, g1, hkk, hks, hss, _, _, _ = ev
         if not ok:
-            return k, s, math.inf, math.inf, -math.inf, 0, 5, ev
+            return k, s, math.inf, math.inf, -math.inf, 0, STATUS_OUTSIDE, ev
         gnorm = math.hypot(g0, g1)
         lmin, lmax = sym2_eigvals(hkk, hks, hss)
         it = 0
-        status = 2
+        status = STATUS_MAX_ITER
         while True:
             if gnorm <= gtol and lmin > 0.0:
-                status = 0
+                status = STATUS_CONVERGED
                 break
             if it >= max_iter:
                 break
@@ -190,7 +249,7 @@ def _make_parts(terms, jit=njit):
                 d1 = (hks * g0 - hkk * g1) / det
                 slope = g0 * d0 + g1 * d1
             else:
-                _, _, ct, st = sym2_eig(hkk, hks, hss)
+                ct, st = sym2_eigvec(hkk, hks, hss)
                 l1 = max(abs(lmin), eig_floor * scale)
                 l2 = max(abs(lmax), eig_floor * scale)
                 a2 = g0 * ct + g1 * st
@@ -198,10 +257,10 @@ def _make_parts(terms, jit=njit):
                 d0 = -(a2 / l2) * ct + (a1 / l1) * st
                 d1 = -(a2 / l2) * st - (a1 / l1) * ct
                 slope = g0 * d0 + g1 * d1
-                if lmin <= 0.0 and gnorm <= 1e3 * gtol:
+                if lmin <= 0.0 and gnorm <= ESCAPE_GRADIENT * gtol:
                     # (Near-)stationary but not a minimum: leave along the negative-curvature direction.
                     v0, v1 = -st, ct
-                    step = 1e-3 * max(1.0, abs(k))
+                    step = ESCAPE_STEP * max(1.0, abs(k))
                     if g0 * v0 + g1 * v1 > 0.0:
                         step = -step
                     d0, d1 = step * v0, step * v1
@@ -209,7 +268,7 @@ def _make_parts(terms, jit=njit):
             t = 1.0
             accepted = False
             kn, sn, nnorm, evn = k, s, gnorm, ev
-            while t > 1e-14:
+            while t > MIN_STEP_LENGTH:
                 kn = k + t * d0
                 sn = s + t * d1
                 if kn < 0.0:
@@ -220,26 +279,26 @@ def _make_parts(terms, jit=njit):
                 if evn[0]:
                     nnorm = math.hypot(evn[2], evn[3])
                     # Armijo; at round-off level the energy cannot rank points, so fall back on |grad|.
-                    if evn[1] <= U + 1e-4 * t * slope or (
-                        abs(evn[1] - U) <= 1e-13 * max(1.0, abs(U)) and nnorm < gnorm
+                    if evn[1] <= U + ARMIJO * t * slope or (
+                        abs(evn[1] - U) <= ENERGY_ROUNDOFF * max(1.0, abs(U)) and nnorm < gnorm
                     ):
                         accepted = True
                         break
                 t *= 0.5
             if not accepted:
-                status = 3
+                status = STATUS_LINE_SEARCH
                 break
             moved = abs(kn - k) + abs(sn - s)
             ev = evn
             k, s, U, g0, g1, hkk, hks, hss, gnorm = kn, sn, evn[1], evn[2], evn[3], evn[4], evn[5], evn[6], nnorm
             lmin, lmax = sym2_eigvals(hkk, hks, hss)
             if moved == 0.0:
-                status = 4
+                status = STATUS_STALLED
                 break
             if radius < math.inf and (lmin <= 0.0 or max(abs(k - k0), abs(s - s0)) > radius):
                 break  # a corrector that leaves the branch's convex neighbourhood: the sub-step was too long
-        if status != 0 and gnorm <= 1e-10 and lmin > 0.0:
-            status = 1
+        if status != STATUS_CONVERGED and gnorm <= ACCEPT_GTOL and lmin > 0.0:
+            status = STATUS_ROUNDOFF
         return k, s, U, gnorm, lmin, it, status, ev
 
     @jit
@@ -259,7 +318,7 @@ def _make_parts(terms, jit=njit):
         p = p0
         h = min(abs(p1 - p0), max_step)
         sign = 1.0 if p1 >= p0 else -1.0
-        while p != p1 and status <= 1:
+        while p != p1 and status <= STATUS_ROUNDOFF:
             # Tangent dx/dp = H^{-1} dV/dx at the current equilibrium, where the Hessian is positive definite.
             hkk, hks, hss, vk, vs = ev[4], ev[5], ev[6], ev[8], ev[9]
             det = hkk * hss - hks * hks
@@ -273,7 +332,7 @@ def _make_parts(terms, jit=njit):
                 if h * rate > PREDICTED_JUMP_FRACTION * max_jump:
                     h = max(PREDICTED_JUMP_FRACTION * max_jump / rate, min_step)
             remaining = abs(p1 - p)
-            pt = p1 if h >= remaining * (1.0 - 1e-12) else p + sign * h
+            pt = p1 if h >= remaining * (1.0 - LAST_STEP_SLACK) else p + sign * h
             started = False
             if tangent:
                 kc = k + (pt - p) * tk
@@ -287,15 +346,15 @@ def _make_parts(terms, jit=njit):
                 r = descend(k, s, pt, prm, kobj, ko, gtol, corr_iter, eig_floor, evs, k, s, max_jump)
             iters += r[5]
             jump = max(abs(r[0] - k), abs(r[1] - s))
-            if r[6] <= 1 and jump <= max_jump:
+            if r[6] <= STATUS_ROUNDOFF and jump <= max_jump:
                 p = pt
                 k, s, U, gn, lmin, status, ev = r[0], r[1], r[2], r[3], r[4], r[6], r[7]
                 substeps += 1
-                if r[5] <= 4:
-                    h = min(2.0 * h, max_step)
+                if r[5] <= EASY_CORRECTOR_ITERATIONS:
+                    h = min(GROW * h, max_step)
                 continue
             if h > min_step:
-                h = max(0.25 * h, min_step)
+                h = max(SHRINK * h, min_step)
                 continue
             # The branch ends within min_step of pressure: a fold. Descend to the minimum that remains.
             evs = evaluate(k, s, pt, prm, kobj, ko)
@@ -306,7 +365,7 @@ def _make_parts(terms, jit=njit):
                 snapped = True
             p = pt
             k, s, U, gn, lmin, status, ev = r[0], r[1], r[2], r[3], r[4], r[6], r[7]
-            h = 0.1 * max_step
+            h = STEP_AFTER_FOLD * max_step
         return k, s, U, gn, lmin, iters, substeps, snapped, status, ev[7] if ev[0] else math.nan
 
     @jit
@@ -346,9 +405,12 @@ result (NaN only if the start was outside the domain). Inputs must already be va
 ``p >= 0``, ``k~_obj >= 0``, ``0 < w kappa_obj < pi``, the start in the domain)."""
 
 
-@dataclass(frozen=True)
-class Equilibrium:
-    """A quasi-static equilibrium (all dimensionless: lengths / ``w``, stresses / ``mu``).
+class Equilibrium(NamedTuple):
+    """A quasi-static equilibrium: the one solved-state type of the package (all dimensionless: lengths / ``w``,
+    stresses / ``mu``).
+
+    Fields are Python scalars for one actuator (:func:`solve_equilibrium`, the single env) or numpy arrays of
+    shape ``(N,)`` for a batch (:func:`pneunet_env.physics.batched.solve_batch`, the vector env).
 
     Attributes:
         pressure: ``p~ = p/mu``.
@@ -362,38 +424,43 @@ class Equilibrium:
         energy: ``U/(mu t w^2)``.
         gradient_norm: ``|grad U|_2`` at the returned state.
         min_eigenvalue: the Hessian's smallest eigenvalue there.
-        converged: ``gradient_norm <= 1e-10`` and ``min_eigenvalue > 0``.
+        converged: ``gradient_norm <= 1e-10`` and ``min_eigenvalue > 0`` (``0 <= status <= 1``).
         iterations: Newton iterations spent (all sub-steps).
         substeps: pressure sub-steps taken.
         snapped: a fold was crossed: the previous branch's minimum vanished and the state jumped.
-        status: what the minimiser reported (see :data:`STATUS_MESSAGES`).
+        status: the minimiser's code (:data:`STATUS_MESSAGES`; :attr:`message` gives the words).
         object_stiffness: ``k~_obj``.
         object_curvature: ``w kappa_obj``.
     """
 
-    pressure: float
-    curvature: float
-    side_strain: float
-    top_strain: float
-    contact_force: float
-    indentation: float
-    in_contact: bool
-    volume_change: float
-    energy: float
-    gradient_norm: float
-    min_eigenvalue: float
-    converged: bool
-    iterations: int
-    substeps: int
-    snapped: bool
-    status: str
-    object_stiffness: float
-    object_curvature: float
+    pressure: Any
+    curvature: Any
+    side_strain: Any
+    top_strain: Any
+    contact_force: Any
+    indentation: Any
+    in_contact: Any
+    volume_change: Any
+    energy: Any
+    gradient_norm: Any
+    min_eigenvalue: Any
+    converged: Any
+    iterations: Any
+    substeps: Any
+    snapped: Any
+    status: Any
+    object_stiffness: Any
+    object_curvature: Any
 
     @property
-    def state(self) -> tuple[float, float]:
+    def state(self) -> tuple[Any, Any]:
         """``(kappa~, e_s)``."""
         return (self.curvature, self.side_strain)
+
+    @property
+    def message(self):
+        """What :attr:`status` means (:func:`status_message`)."""
+        return status_message(self.status)
 
 
 def check_pressure(pressure: float, name: str = "pressure") -> float:
@@ -415,13 +482,14 @@ def params_tuple(params: ActuatorParams | None) -> tuple[float, ...]:
             params.base_modulus, params.poisson_ratio, params.gent_limit)
 
 
-def _equilibrium(p, out, d, kobj, kc) -> Equilibrium:
-    """Build the :class:`Equilibrium` of a :func:`step_state` result (``d`` = chamber height)."""
-    k, s, U, gn, lmin, iters, substeps, snapped, status, dv = out
-    delta = (k - kc) / (k * kc) if (k > kc and kobj > 0.0) else 0.0  # no object (k~ = 0): no indentation
+def equilibrium(pressure, raw, chamber_height, object_stiffness, object_curvature) -> Equilibrium:
+    """The :class:`Equilibrium` of one :func:`step_state` result ``raw`` (the one place its tuple is unpacked)."""
+    k, s, U, gn, lmin, iters, substeps, snapped, status, dv = raw
+    delta, force, touching = scalar_contact(k, object_stiffness, object_curvature)
     return Equilibrium(
-        p, k, s, d * (1.0 + s) * k, kobj * delta, delta, kobj > 0.0 and k > kc, dv, U, gn, lmin, status <= 1,
-        iters, substeps, snapped, STATUS_MESSAGES[status], kobj, kc,
+        pressure, k, s, chamber_height * (1.0 + s) * k, force, delta, touching, dv, U, gn, lmin,
+        STATUS_CONVERGED <= status <= STATUS_ROUNDOFF, iters, substeps, snapped, status, object_stiffness,
+        object_curvature,
     )
 
 
@@ -489,7 +557,7 @@ def solve_equilibrium(
             snapped = max(abs(r[0] - x0[0]), abs(r[1] - x0[1])) > o.max_jump
             dv = _evaluate(r[0], r[1], p, prm, kobj, kc)[7]
             out = (r[0], r[1], r[2], r[3], r[4], r[5], 0, snapped, r[6], dv)
-    return _equilibrium(p, out, prm[0], kobj, kc)
+    return equilibrium(p, out, prm[0], kobj, kc)
 
 
 @dataclass(frozen=True)

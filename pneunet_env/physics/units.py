@@ -1,8 +1,8 @@
 """Physical units at the edges: mm and kPa in, dimensionless inside, mm and kPa out.
 
 The model is solved in units of the chamber width ``w`` (lengths) and the elastomer's small-strain
-shear modulus ``mu`` (stresses, pressure, moduli). :class:`Scales` holds the two and converts
-both ways; :class:`PhysicalActuator` is supplement Table 1 in mm and kPa.
+shear modulus ``mu`` (stresses, pressure, moduli). :class:`Scales` holds the two (the table below says how
+each quantity converts); :class:`PhysicalActuator` is supplement Table 1 in mm and kPa.
 
 | quantity              | dimensionless              | physical                            |
 |-----------------------|----------------------------|-------------------------------------|
@@ -18,6 +18,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from pneunet_env.physics.contact import winkler_stiffness
 from pneunet_env.physics.params import ActuatorParams, check_finite, check_positive
 
 __all__ = [
@@ -39,38 +40,6 @@ class Scales:
     def __post_init__(self) -> None:
         check_positive("width_mm", self.width_mm)
         check_positive("shear_modulus_kpa", self.shear_modulus_kpa)
-
-    # lengths
-    def length_to_mm(self, length: float) -> float:
-        return length * self.width_mm
-
-    def length_from_mm(self, mm: float) -> float:
-        return mm / self.width_mm
-
-    # curvature: kappa~ = w kappa, kappa in 1/m
-    def curvature_to_per_m(self, kappa: float) -> float:
-        return kappa / (self.width_mm * 1e-3)
-
-    def curvature_from_per_m(self, per_m: float) -> float:
-        return per_m * self.width_mm * 1e-3
-
-    # pressure, traction, moduli
-    def stress_to_kpa(self, stress: float) -> float:
-        return stress * self.shear_modulus_kpa
-
-    def stress_from_kpa(self, kpa: float) -> float:
-        return kpa / self.shear_modulus_kpa
-
-    # Winkler stiffness: k~ = k_obj w / mu, k_obj in kPa/mm
-    def stiffness_to_kpa_per_mm(self, k: float) -> float:
-        return k * self.shear_modulus_kpa / self.width_mm
-
-    def stiffness_from_kpa_per_mm(self, kpa_per_mm: float) -> float:
-        return kpa_per_mm * self.width_mm / self.shear_modulus_kpa
-
-    def energy_to_mj(self, energy: float, depth_mm: float) -> float:
-        """``U = U~ mu t w^2``; kPa * mm^3 = 1e-6 J = 1e-3 mJ."""
-        return energy * self.shear_modulus_kpa * depth_mm * self.width_mm**2 * 1e-3
 
 
 def object_stiffness_from_material(
@@ -95,8 +64,7 @@ def object_stiffness_from_material(
             f"object thickness H={thickness_mm!r} mm is not below its outer radius 1/kappa_obj="
             f"{1e3 / kap:.4g} mm (need H kappa_obj < 1)"
         )
-    k_obj_kpa_per_m = 2.0 * mu_obj * kap * (1.0 / (1.0 - H * kap) ** 2 - 1.0)  # kPa / m
-    return scales.stiffness_from_kpa_per_mm(k_obj_kpa_per_m * 1e-3)
+    return winkler_stiffness(mu_obj, thickness_mm, kap, scales.width_mm, scales.shear_modulus_kpa)
 
 
 def object_modulus_from_stiffness(
@@ -115,7 +83,7 @@ class PhysicalActuator:
     """The actuator in physical units (supplement Table 1 defaults): lengths in mm, moduli in kPa."""
 
     width_mm: float = 5.0
-    height_mm: float = 5.0
+    chamber_height_mm: float = 5.0
     depth_mm: float = 5.0
     base_thickness_mm: float = 2.5
     side_thickness_mm: float = 2.5
@@ -126,7 +94,7 @@ class PhysicalActuator:
     gent_limit: float = 20.0
 
     def __post_init__(self) -> None:
-        for name in ("width_mm", "height_mm", "depth_mm", "shear_modulus_kpa"):
+        for name in ("width_mm", "chamber_height_mm", "depth_mm", "shear_modulus_kpa"):
             check_positive(name, getattr(self, name))
         for name in ("base_thickness_mm", "side_thickness_mm", "top_thickness_mm", "base_modulus_kpa"):
             check_finite(name, getattr(self, name))
@@ -139,7 +107,7 @@ class PhysicalActuator:
         """The :class:`ActuatorParams` of this actuator (validated there: a wall thicker than the chamber raises)."""
         w, mu = self.width_mm, self.shear_modulus_kpa
         return ActuatorParams(
-            chamber_height=self.height_mm / w,
+            chamber_height=self.chamber_height_mm / w,
             base_thickness=self.base_thickness_mm / w,
             side_thickness=self.side_thickness_mm / w,
             top_thickness=self.top_thickness_mm / w,
@@ -154,7 +122,7 @@ class PhysicalActuator:
         w, mu = scales.width_mm, scales.shear_modulus_kpa
         return cls(
             width_mm=w,
-            height_mm=params.chamber_height * w,
+            chamber_height_mm=params.chamber_height * w,
             depth_mm=depth_mm,
             base_thickness_mm=params.base_thickness * w,
             side_thickness_mm=params.side_thickness * w,

@@ -26,10 +26,10 @@ SPACE = gym.spaces.Box(-1.0, 1.0, (1,), np.float32)
 
 
 def _thresholds(k, config=CFG):
-    obj = GraspObject.from_stiffness(k, thickness_mm=config.object_thickness_mm[0],
-                                     curvature_per_m=config.object_curvature_per_m[0],
-                                     density_kg_m3=config.object_density_kg_m3[0],
-                                     failure_strain=config.object_failure_strain[0], scales=config.scales)
+    obj = GraspObject.from_stiffness(k, thickness_mm=config.objects.object_thickness_mm[0],
+                                     curvature_per_m=config.objects.object_curvature_per_m[0],
+                                     density_kg_m3=config.objects.object_density_kg_m3[0],
+                                     failure_strain=config.objects.object_failure_strain[0], scales=config.scales)
     return obj, object_thresholds(obj, TaskParams.from_config(config))
 
 
@@ -87,7 +87,7 @@ def test_best_ramp_loads_its_saved_parameters():
     entry = make_policy("best-ramp")
     assert isinstance(entry.policy, LinearRamp)
     assert entry.policy.target == data["target"] and entry.policy.n_steps == data["n_steps"]
-    assert data["target_kpa"] == pytest.approx(data["target"] * CFG.max_pressure_kpa)
+    assert data["target_kpa"] == pytest.approx(data["target"] * CFG.task.max_pressure_kpa)
     assert data["score"]["success_rate"] >= 0.0 and data["search"]["objects"] >= 1
     rigid_data = json.loads(BEST_RIGID_PATH.read_text())
     r = make_policy("rigid")
@@ -188,6 +188,7 @@ def test_rigid_traction_is_k_delta_and_the_same_objects():
     for seed in range(5):
         _, info = env.reset(seed=seed)
         _, pinfo = penv.reset(seed=seed)
+        k_kpa_per_mm = info["object_stiffness_kpa_per_mm"]  # the object's constants are in the reset info
         assert info["object_stiffness"] == pinfo["object_stiffness"]  # the same object for the same seed
         assert info["grip_traction_kpa"] == pinfo["grip_traction_kpa"]
         for _ in range(4):
@@ -196,7 +197,6 @@ def test_rigid_traction_is_k_delta_and_the_same_objects():
         assert info["jaw_closure_mm"] == pytest.approx(closure)
         assert obs[0] == pytest.approx(closure / env.unwrapped.jaw_travel_mm, rel=1e-6)
         assert info["indentation_mm"] == pytest.approx(closure)  # one object size: delta = closure
-        k_kpa_per_mm = info["object_stiffness_kpa_per_mm"]
         assert info["contact_force_kpa"] == pytest.approx(k_kpa_per_mm * closure, rel=1e-12)
     env.close()
     penv.close()
@@ -204,12 +204,12 @@ def test_rigid_traction_is_k_delta_and_the_same_objects():
 
 def test_rigid_crushes_past_the_thickness_and_slips_below_the_grip():
     env = gym.make("RigidGrasp-v0")
-    too_deep = LinearRamp.from_kpa(CFG.max_pressure_kpa, 20)  # the full 20 mm travel: past H = 10 mm
+    too_deep = LinearRamp.from_kpa(CFG.task.max_pressure_kpa, 20)  # the full 20 mm travel: past H = 10 mm
     r = run_episode(env, too_deep, seed=0, options={"object_stiffness": 1e-2})
     assert r["damaged"] and not r["success"]
     shallow = LinearRamp(0.05, 5)  # 1 mm: k~ = 1e-4 gives F = 1 Pa << 98 Pa
     r = run_episode(env, shallow, seed=0, options={"object_stiffness": 1e-4})
-    assert r["dropped"] and r["steps"] == CFG.squeeze_steps + 1
+    assert r["dropped"] and r["steps"] == CFG.task.squeeze_steps + 1
     env.close()
 
 
@@ -219,7 +219,7 @@ def test_rigid_size_offset():
     assert jaw_indentation(5.0, 3.6, 4.0) == pytest.approx(5.0 + 1e3 / 3.6 - 250.0)
     env = RigidGraspEnv(object_curvature_per_m=[3.6, 4.4])
     _, info = env.reset(seed=3)
-    assert env.unwrapped._nominal == pytest.approx(4.0)
+    assert env.unwrapped.nominal_curvature_per_m == pytest.approx(4.0)
     assert np.isfinite(info["indentation_mm"])
 
 

@@ -14,8 +14,8 @@ pytest.importorskip("scipy")
 
 from pneunet_env import ActuatorParams, solve_equilibrium  # noqa: E402
 from pneunet_env.bench import solvers  # noqa: E402
+from pneunet_env.bench.models import AUTO_TOLERANCE  # noqa: E402
 from pneunet_env.cli import main  # noqa: E402
-from pneunet_env.physics.models import AUTO_TOLERANCE  # noqa: E402
 
 OUTPUTS = ("solvers.json", "solvers_details.json", "speed_accuracy.png", "stability_map.png", "step_size.png")
 FAILURE_TEXTS = set(solvers._FAILURE_TEXT.values())

@@ -9,6 +9,7 @@ from gymnasium.utils.env_checker import check_env
 
 import pneunet_env  # noqa: F401  (registers the environment)
 from agents.scripted import LinearRamp, StepPolicy
+from pneunet_env import task
 from pneunet_env.envs.grasp import PneuNetGraspEnv
 
 
@@ -131,7 +132,7 @@ def test_non_finite_actions_raise(bad):
 def test_out_of_range_actions_are_clipped_and_reported():
     env = PneuNetGraspEnv()
     env.reset(seed=0)
-    step = env.config.max_pressure_step_kpa
+    step = env.config.task.max_pressure_step_kpa
     _, _, _, _, info = env.step(np.array([5.0]))
     assert info["action_clipped"] and info["pressure_kpa"] == pytest.approx(step)
     _, _, _, _, info = env.step(np.array([0.5]))
@@ -153,7 +154,7 @@ def test_step_before_reset_raises():
 
 
 def test_20000_random_steps_converge_without_nan():
-    env = gym.make("PneuNetGrasp-v0", observe_volume=True)
+    env = gym.make("PneuNetGrasp-v0", info_level="full", observe_volume=True)
     env.action_space.seed(0)
     obs, info = env.reset(seed=0)
     episodes, snaps, contacts = 1, 0, 0
@@ -178,7 +179,7 @@ def test_20000_random_steps_converge_without_nan():
 
 
 def test_soft_object_traction_saturates_stiff_object_curvature_pinned():
-    env = gym.make("PneuNetGrasp-v0", terminate_on_damage=False, terminate_on_slip=False)
+    env = gym.make("PneuNetGrasp-v0", info_level="full", terminate_on_damage=False, terminate_on_slip=False)
     ramp = LinearRamp(1.0, 40)
 
     def path(k):
@@ -206,41 +207,41 @@ def test_soft_object_traction_saturates_stiff_object_curvature_pinned():
 
 
 def test_crushing_schedule_gets_the_damage_penalty_and_terminates():
-    env = gym.make("PneuNetGrasp-v0")
+    env = gym.make("PneuNetGrasp-v0", info_level="full")
     cfg = env.unwrapped.config
     traj = _episode(env, StepPolicy(1.0), options={"object_stiffness": 1e-4})
     _, reward, terminated, truncated, info = traj[-1]
     assert terminated and not truncated
     assert info["damaged"] and info["crushed"] and info["indentation_mm"] > info["crush_indentation_mm"]
-    assert reward == -cfg.penalty_damage
+    assert reward == -cfg.task.penalty_damage
     assert info["is_success"] is False
-    assert len(traj) - 1 < cfg.squeeze_steps  # crushed while squeezing
+    assert len(traj) - 1 < cfg.task.squeeze_steps  # crushed while squeezing
     env.close()
 
 
 def test_too_gentle_schedule_gets_the_slip_penalty():
-    env = gym.make("PneuNetGrasp-v0")
+    env = gym.make("PneuNetGrasp-v0", info_level="full")
     cfg = env.unwrapped.config
     traj = _episode(env, LinearRamp(0.2, 20), options={"object_stiffness": 1e-1})
     _, reward, terminated, truncated, info = traj[-1]
     assert terminated and not truncated
     assert info["slipping"] and info["dropped"] and not info["damaged"]
     assert info["contact_force_kpa"] < info["grip_traction_kpa"]
-    assert reward == -cfg.penalty_slip
-    assert len(traj) - 1 == cfg.squeeze_steps + 1  # dropped on the first lifted step
-    assert sum(t[1] for t in traj) == -cfg.penalty_slip
+    assert reward == -cfg.task.penalty_slip
+    assert len(traj) - 1 == cfg.task.squeeze_steps + 1  # dropped on the first lifted step
+    assert sum(t[1] for t in traj) == -cfg.task.penalty_slip
     env.close()
 
 
 def test_firm_schedule_on_a_stiff_object_is_held():
-    env = gym.make("PneuNetGrasp-v0")
+    env = gym.make("PneuNetGrasp-v0", info_level="full")
     cfg = env.unwrapped.config
     traj = _episode(env, StepPolicy(1.0), options={"object_stiffness": 1e-1})
     _, _, terminated, truncated, info = traj[-1]
     assert truncated and not terminated and info["is_success"] is True
     assert info["contact_force_kpa"] >= info["grip_traction_kpa"] and not info["damaged"]
     total = sum(t[1] for t in traj)
-    assert total == pytest.approx(cfg.hold_steps * cfg.reward_hold + cfg.reward_success)
+    assert total == pytest.approx(cfg.task.hold_steps * cfg.task.reward_hold + cfg.task.reward_success)
     env.close()
 
 
@@ -248,17 +249,17 @@ def test_firm_schedule_on_a_stiff_object_is_held():
 
 
 def test_reset_pins_and_info_units():
-    env = gym.make("PneuNetGrasp-v0")
+    env = gym.make("PneuNetGrasp-v0", info_level="full")
     _, info = env.reset(seed=0, options={"object_shear_modulus_kpa": 15.0, "object_thickness_mm": 8.0})
     assert info["object_shear_modulus_kpa"] == 15.0 and info["object_thickness_mm"] == 8.0
     assert info["pressure"] == 0.0 and info["curvature"] == 0.0 and not info["in_contact"]
     for _ in range(30):
         _, _, _, _, info = env.step(np.array([1.0]))
     cfg = env.unwrapped.config
-    assert info["pressure_kpa"] == pytest.approx(info["pressure"] * cfg.shear_modulus_kpa)
-    assert info["contact_force_kpa"] == pytest.approx(info["contact_force"] * cfg.shear_modulus_kpa)
-    assert info["indentation_mm"] == pytest.approx(info["indentation"] * cfg.width_mm)
-    assert info["curvature_per_m"] == pytest.approx(info["curvature"] / (cfg.width_mm * 1e-3))
+    assert info["pressure_kpa"] == pytest.approx(info["pressure"] * cfg.actuator.shear_modulus_kpa)
+    assert info["contact_force_kpa"] == pytest.approx(info["contact_force"] * cfg.actuator.shear_modulus_kpa)
+    assert info["indentation_mm"] == pytest.approx(info["indentation"] * cfg.actuator.width_mm)
+    assert info["curvature_per_m"] == pytest.approx(info["curvature"] / (cfg.actuator.width_mm * 1e-3))
     assert info["contact_force"] == pytest.approx(info["object_stiffness"] * info["indentation"])
     for key in ("pressure", "curvature", "side_strain", "contact_force", "indentation", "object_stiffness",
                 "in_contact", "damaged", "slipping", "snapped", "solver_iterations", "solver_converged",
@@ -270,7 +271,7 @@ def test_reset_pins_and_info_units():
 
 
 def test_free_actuator_episode():
-    env = gym.make("PneuNetGrasp-v0")
+    env = gym.make("PneuNetGrasp-v0", info_level="full")
     traj = _episode(env, StepPolicy(1.0), options={"object_stiffness": 0.0})
     info = traj[-1][4]
     assert info["dropped"] and not info["damaged"] and info["contact_force"] == 0.0 and info["indentation"] == 0.0
@@ -296,7 +297,7 @@ def test_linear_ramp_reaches_its_target_in_n_steps_and_holds():
     fast = LinearRamp(1.0, 5, env.config)
     obs, _ = env.reset(seed=0)
     obs, *_ = env.step(fast(obs))
-    assert obs[0] == pytest.approx(env.config.max_pressure_step_kpa / env.config.max_pressure_kpa)
+    assert obs[0] == pytest.approx(env.config.task.max_pressure_step_kpa / env.config.task.max_pressure_kpa)
 
 
 def test_step_policy_and_batched_predict():
@@ -311,3 +312,18 @@ def test_step_policy_and_batched_predict():
         StepPolicy(1.5)
     with pytest.raises(ValueError, match="n_steps"):
         LinearRamp(0.5, 0)
+
+
+def test_lean_info_keys_and_the_objects_constants_at_reset():
+    env = gym.make("PneuNetGrasp-v0")
+    _, info = env.reset(seed=3)
+    assert set(info) == set(task.LEAN_KEYS) | set(task.OBJECT_KEYS)
+    _, _, _, _, info = env.step(np.array([1.0], np.float32))
+    assert set(info) == set(task.LEAN_KEYS)
+    full = gym.make("PneuNetGrasp-v0", info_level="full")
+    _, info_r = full.reset(seed=3)
+    _, _, _, _, info_f = full.step(np.array([1.0], np.float32))
+    assert len(info_f) == 44 and set(task.LEAN_KEYS) | set(task.OBJECT_KEYS) <= set(info_f)
+    assert all(info_f[k] == info[k] for k in task.LEAN_KEYS)  # the lean keys are the full info's, unchanged
+    with pytest.raises(ValueError, match="info_level"):
+        gym.make("PneuNetGrasp-v0", info_level="everything")

@@ -2,14 +2,18 @@
 
 from __future__ import annotations
 
+import ast
+import importlib
 import math
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
 
-from pneunet_env import ActuatorParams, cli
+from pneunet_env import ActuatorParams, cli, paper
+from pneunet_env.paper import command
 from pneunet_env.paper.checks import CHECKS
 from pneunet_env.paper.figures import (
     COLUMNS,
@@ -235,5 +239,47 @@ def test_linear_rows_follow_eq_17_and_stop_where_the_quadratic_energy_does():
 
 
 def test_figures_module_imports_without_matplotlib():
-    code = "import sys, pneunet_env.paper.figures, pneunet_env.paper.checks; assert 'matplotlib' not in sys.modules"
+    code = ("import sys, pneunet_env.paper, pneunet_env.paper.figures, pneunet_env.paper.checks, "
+            "pneunet_env.paper.command; assert 'matplotlib' not in sys.modules")
     subprocess.run([sys.executable, "-c", code], check=True)
+
+
+def _paper_imports() -> dict[str, set[str]]:
+    """Module -> the ``pneunet_env.paper`` modules it imports anywhere in its source (lazy imports included)."""
+    package = Path(paper.__file__).parent
+    graph: dict[str, set[str]] = {}
+    for path in sorted(package.glob("*.py")):
+        name = path.stem
+        deps: set[str] = set()
+        for node in ast.walk(ast.parse(path.read_text())):
+            if isinstance(node, ast.ImportFrom) and node.module == "pneunet_env.paper":
+                deps |= {a.name for a in node.names}
+            elif isinstance(node, ast.ImportFrom) and node.module and node.module.startswith("pneunet_env.paper."):
+                deps.add(node.module.removeprefix("pneunet_env.paper."))
+            elif isinstance(node, ast.Import):
+                deps |= {a.name.removeprefix("pneunet_env.paper.") for a in node.names
+                         if a.name.startswith("pneunet_env.paper.")}
+        graph[name] = deps - {name}
+    return graph
+
+
+def test_paper_import_graph_is_acyclic():
+    graph = _paper_imports()
+    assert graph["figures"] == set() and graph["checks"] == {"figures"}
+    assert graph["command"] == {"figures", "checks"} and graph["__init__"] == set()
+    done: set[str] = set()
+
+    def visit(node: str, stack: tuple[str, ...]) -> None:
+        assert node not in stack, f"import cycle: {' -> '.join(stack + (node,))}"
+        if node not in done:
+            for dep in graph.get(node, ()):
+                visit(dep, stack + (node,))
+            done.add(node)
+
+    for node in graph:
+        visit(node, ())
+
+
+def test_cli_figures_entry_is_the_command_module():
+    module = importlib.import_module(cli.COMMANDS["figures"][0])
+    assert module is command and callable(module.add_arguments) and callable(module.run)

@@ -11,7 +11,15 @@ from pneunet_env import ActuatorParams, SolverOptions, solve_equilibrium
 from pneunet_env.physics import batched as B
 from pneunet_env.physics import mechanics
 from pneunet_env.physics._jit import HAVE_NUMBA
-from pneunet_env.physics.solver import ACCEPT_GTOL, DEFAULT_OPTIONS, STATUS_MESSAGES, params_tuple, step_state
+from pneunet_env.physics.solver import (
+    ACCEPT_GTOL,
+    DEFAULT_OPTIONS,
+    STATUS_INACTIVE,
+    STATUS_MESSAGES,
+    Equilibrium,
+    params_tuple,
+    step_state,
+)
 
 KO = 0.02
 BACKENDS = ["numpy"] + (["numba"] if HAVE_NUMBA else [])
@@ -30,11 +38,11 @@ def equilibria(p, kobj, ko=KO, params=None):
     n = len(p)
     r = B.solve_batch(np.zeros(n), np.zeros(n), 0.0, p, kobj, ko, params)
     assert r.converged.all()
-    return r.kappa, r.side_strain
+    return r.curvature, r.side_strain
 
 
-def assert_matches(result: B.BatchEquilibrium, ref: np.ndarray, tol: float = 1e-10) -> None:
-    assert np.max(np.abs(result.kappa - ref[:, 0])) <= tol
+def assert_matches(result: Equilibrium, ref: np.ndarray, tol: float = 1e-10) -> None:
+    assert np.max(np.abs(result.curvature - ref[:, 0])) <= tol
     assert np.max(np.abs(result.side_strain - ref[:, 1])) <= tol
     assert np.max(np.abs(result.energy - ref[:, 2])) <= tol
     assert np.array_equal(result.snapped, ref[:, 7].astype(bool))
@@ -85,13 +93,13 @@ def test_folds_snap_like_scalar(backend):
     assert r.snapped[[0, 1, 4]].all() and not r.snapped[3]
     # Unload the snapped states: they snap back.
     down = np.full(6, 0.3)
-    ref2 = scalar_reference(r.kappa, r.side_strain, after, down, kobj, KO)
-    r2 = B.solve_batch(r.kappa, r.side_strain, after, down, kobj, KO, backend=backend)
+    ref2 = scalar_reference(r.curvature, r.side_strain, after, down, kobj, KO)
+    r2 = B.solve_batch(r.curvature, r.side_strain, after, down, kobj, KO, backend=backend)
     assert_matches(r2, ref2)
     assert r2.snapped[[0, 1, 4]].all()
     # And the batched answer is the public API's.
     eq = solve_equilibrium(0.8, 1e-4, KO, initial=(k[0], s[0]), initial_pressure=0.6)
-    assert eq.snapped and abs(eq.curvature - r.kappa[0]) <= 1e-10
+    assert eq.snapped and abs(eq.curvature - r.curvature[0]) <= 1e-10
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
@@ -104,7 +112,7 @@ def test_contact_onset_and_stiff_objects(backend):
     ref = scalar_reference(k, s, p0, p1, kobj, KO)
     r = B.solve_batch(k, s, p0, p1, kobj, KO, backend=backend)
     assert_matches(r, ref)
-    assert (r.kappa > KO).any() and (k < KO).any()
+    assert (r.curvature > KO).any() and (k < KO).any()
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
@@ -117,7 +125,7 @@ def test_near_the_gent_limit(backend):
     r = B.solve_batch(k, s, p0, p1, 0.0, KO, params, backend=backend)
     assert_matches(r, ref)
     # The walls stiffen against the limit I1 - 3 < J: the states stay in the domain.
-    assert np.all(mechanics.in_domain(r.kappa, r.side_strain, params))
+    assert np.all(mechanics.in_domain(r.curvature, r.side_strain, params))
     assert r.converged.all()
 
 
@@ -141,32 +149,33 @@ def test_inactive_envs_are_left_alone(random_steps, backend):
     active = np.arange(40) % 3 != 0
     r = B.solve_batch(k, s, p0, p1, kobj, ko, active=active, backend=backend)
     full = B.solve_batch(k, s, p0, p1, kobj, ko, backend=backend)
-    for field in B.BatchEquilibrium._fields:
+    for field in Equilibrium._fields:
         a, b = getattr(r, field)[active], getattr(full, field)[active]
         assert np.array_equal(a, b, equal_nan=a.dtype.kind == "f"), field
     off = ~active
-    assert np.array_equal(r.kappa[off], k[off]) and np.array_equal(r.side_strain[off], s[off])
-    assert np.all(r.status[off] == B.STATUS_INACTIVE) and not r.converged[off].any()
+    assert np.array_equal(r.curvature[off], k[off]) and np.array_equal(r.side_strain[off], s[off])
+    assert np.all(r.status[off] == STATUS_INACTIVE) and not r.converged[off].any()
     assert np.all(r.iterations[off] == 0) and np.isnan(r.energy[off]).all()
-    assert B.BATCH_STATUS_MESSAGES[B.STATUS_INACTIVE] and B.BATCH_STATUS_MESSAGES[0] == STATUS_MESSAGES[0]
+    assert STATUS_MESSAGES[STATUS_INACTIVE] == "not solved (inactive)"
+    assert list(r.message[off]) == [STATUS_MESSAGES[STATUS_INACTIVE]] * int(off.sum())
     none = B.solve_batch(k, s, p0, p1, kobj, ko, active=np.zeros(40, bool), backend=backend)
-    assert np.all(none.status == B.STATUS_INACTIVE)
+    assert np.all(none.status == STATUS_INACTIVE)
 
 
 @pytest.mark.parametrize("backend", BACKENDS)
 def test_broadcasting_and_fresh_arrays(backend):
     k, s = equilibria(np.array([0.4]), 1e-3)
     r = B.solve_batch(k[0], s[0], 0.4, [0.41, 0.45, 0.5], 1e-3, backend=backend)
-    assert r.kappa.shape == (3,)
+    assert r.curvature.shape == (3,)
     for i, p in enumerate([0.41, 0.45, 0.5]):
         eq = solve_equilibrium(p, 1e-3, KO, initial=(float(k[0]), float(s[0])), initial_pressure=0.4)
-        assert abs(eq.curvature - r.kappa[i]) <= 1e-10 and abs(eq.volume_change - r.volume_change[i]) <= 1e-10
+        assert abs(eq.curvature - r.curvature[i]) <= 1e-10 and abs(eq.volume_change - r.volume_change[i]) <= 1e-10
     r2 = B.solve_batch(k[0], s[0], 0.4, [0.41, 0.45, 0.5], 1e-3, backend=backend)
-    assert all(not np.shares_memory(getattr(r, f), getattr(r2, f)) for f in B.BatchEquilibrium._fields)
+    assert all(not np.shares_memory(getattr(r, f), getattr(r2, f)) for f in Equilibrium._fields)
     scalar = B.solve_batch(0.0, 0.0, 0.0, 0.3, backend=backend)
-    assert scalar.kappa.shape == (1,)
+    assert scalar.curvature.shape == (1,)
     unchecked = B.solve_batch(k[0], s[0], 0.4, [0.41, 0.45, 0.5], 1e-3, backend=backend, validate=False)
-    assert np.array_equal(unchecked.kappa, r.kappa)
+    assert np.array_equal(unchecked.curvature, r.curvature)
     with pytest.raises(ValueError, match="outside the domain"):  # a NaN start is caught even unvalidated
         B.solve_batch(float("nan"), 0.0, 0.0, 0.3, backend=backend, validate=False)
 
@@ -184,9 +193,9 @@ def test_backends_agree_on_a_long_random_walk():
         for b in BACKENDS:
             out[b] = B.solve_batch(*state[b], p, p_new, kobj, KO, backend=b)
             assert out[b].converged.all()
-            state[b] = (out[b].kappa, out[b].side_strain)
+            state[b] = (out[b].curvature, out[b].side_strain)
         if len(BACKENDS) == 2:
-            assert np.max(np.abs(out["numpy"].kappa - out["numba"].kappa)) <= 1e-10
+            assert np.max(np.abs(out["numpy"].curvature - out["numba"].curvature)) <= 1e-10
             assert np.array_equal(out["numpy"].snapped, out["numba"].snapped)
         p = p_new
 
@@ -197,7 +206,7 @@ def test_parallel_and_serial_loops_agree(random_steps):
     args = (k, s, p0, p1, kobj, ko, params_tuple(None), DEFAULT_OPTIONS.as_tuple(), np.ones(len(k), bool))
     a = B.solve_batch_numba(*args, parallel=False)
     b = B.solve_batch_numba(*args, parallel=True)
-    for field in B.BatchEquilibrium._fields:
+    for field in Equilibrium._fields:
         assert np.array_equal(getattr(a, field), getattr(b, field)), field
 
 

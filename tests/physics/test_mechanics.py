@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from pneunet_env import ActuatorParams
-from pneunet_env.physics import mechanics
+from pneunet_env.physics import contact, mechanics
 from pneunet_env.physics.mechanics import energy, energy_grad_hess, in_domain, kcot_half, scalar_terms, volume_change
 
 # Points (kappa~, e_s, p~, k~_obj, w kappa_obj) spread over the domain: near kappa = 0, the series/direct switch
@@ -160,10 +160,13 @@ def test_vectorised_energy_broadcasts(params):
 
 
 def test_contact_force_and_indentation():
-    assert mechanics.indentation(0.01, 0.02) == 0.0
-    assert mechanics.contact_force(0.01, 1.0, 0.02) == 0.0
-    assert math.isclose(float(mechanics.indentation(0.025, 0.02)), 1 / 0.02 - 1 / 0.025)
-    assert math.isclose(float(mechanics.contact_force(0.025, 1e-3, 0.02)), 1e-3 * (50 - 40))
+    assert contact.indentation(0.01, 0.02) == 0.0
+    assert contact.contact(0.01, 1.0, 0.02)[1] == 0.0
+    assert math.isclose(float(contact.indentation(0.025, 0.02)), 1 / 0.02 - 1 / 0.025)
+    assert math.isclose(float(contact.contact(0.025, 1e-3, 0.02)[1]), 1e-3 * (50 - 40))
+    assert contact.scalar_contact(0.025, 1e-3, 0.02) == (contact.scalar_indentation(0.025, 0.02),
+                                                          1e-3 * contact.scalar_indentation(0.025, 0.02), True)
+    assert contact.scalar_contact(0.025, 0.0, 0.02) == (0.0, 0.0, False)  # no object, no indentation
     # The object's energy has a continuous first derivative across contact onset (eq. 2.11), while its
     # second derivative jumps by k_obj / kappa_obj^4.
     p, kobj, ko, eps = ActuatorParams(), 1e-1, 0.02, 1e-13

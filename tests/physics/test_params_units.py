@@ -2,8 +2,6 @@
 
 from __future__ import annotations
 
-import math
-
 import pytest
 
 from pneunet_env import ActuatorParams
@@ -81,16 +79,8 @@ def test_table1_physical_actuator_round_trip():
         PhysicalActuator(shear_modulus_kpa=-50.0)
 
 
-def test_scales_convert_both_ways():
-    sc = Scales(width_mm=5.0, shear_modulus_kpa=50.0)
-    assert sc.curvature_to_per_m(0.02) == pytest.approx(4.0)  # Table 1: kappa_obj = 4 /m
-    assert sc.curvature_from_per_m(4.0) == pytest.approx(0.02)
-    assert sc.stress_to_kpa(1.2) == pytest.approx(60.0)
-    assert sc.stress_from_kpa(60.0) == pytest.approx(1.2)
-    assert sc.length_to_mm(2.0) == 10.0 and sc.length_from_mm(10.0) == 2.0
-    k = 1e-3
-    assert sc.stiffness_from_kpa_per_mm(sc.stiffness_to_kpa_per_mm(k)) == pytest.approx(k)
-    assert math.isclose(sc.energy_to_mj(1.0, 5.0), 50.0 * 5.0 * 25.0 * 1e-3)
+def test_scales_validate():
+    assert Scales() == Scales(width_mm=5.0, shear_modulus_kpa=50.0)
     with pytest.raises(ValueError, match="width_mm"):
         Scales(width_mm=0.0)
 

@@ -16,7 +16,7 @@ KO = 0.02  # w kappa_obj, the paper's object
 
 def assert_minimum(eq: Equilibrium, params: ActuatorParams) -> None:
     """An accepted state: converged, in the domain, zero gradient and a positive-definite Hessian (re-evaluated)."""
-    assert eq.converged, eq.status
+    assert eq.converged, eq.message
     assert all(math.isfinite(v) for v in (eq.curvature, eq.side_strain, eq.energy, eq.contact_force))
     assert bool(mechanics.in_domain(eq.curvature, eq.side_strain, params))
     d = mechanics.energy_grad_hess(eq.curvature, eq.side_strain, eq.pressure, params, eq.object_stiffness,
@@ -188,5 +188,5 @@ def test_round_off_floor_beyond_double_precision_is_reported_not_hidden():
     assert np.isfinite(d.energy) and np.linalg.eigvalsh(d.hessian).min() > 0
     assert eq.converged == (eq.gradient_norm <= ACCEPT_GTOL)
     if not eq.converged:
-        assert eq.status != "converged"
+        assert eq.message != "converged"
     assert abs(eq.curvature - 2.0**-7) < 1e-9  # pinned at the kink of contact onset, as it should be

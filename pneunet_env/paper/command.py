@@ -1,0 +1,55 @@
+"""``pneunet-grasp figures``: regenerate the seed paper's figures (PNG + CSV) and check its statements.
+
+The command line only: the figures are computed and drawn by :mod:`pneunet_env.paper.figures`, the statements
+measured by :mod:`pneunet_env.paper.checks`. Writes ``NAME.csv`` and ``NAME.png`` per figure and
+``paper_checks.md``; exits 1 if an equilibrium did not converge or a check disagrees with its expected outcome.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from pneunet_env.paper import checks as paper_checks
+from pneunet_env.paper.figures import FIGURES, generate, load_tables
+
+__all__ = ["add_arguments", "run"]
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--out", required=True, help="output folder (created): NAME.png, NAME.csv, paper_checks.md")
+    parser.add_argument("--quick", action="store_true", help="coarser grids (CI): well under a minute")
+    parser.add_argument("--only", nargs="+", metavar="NAME", choices=list(FIGURES),
+                        help=f"only these figures (default all: {', '.join(FIGURES)}); the checks need all")
+    parser.add_argument("--no-csv", action="store_true", help="write only the PNGs (and print the checks)")
+    parser.add_argument("--table-only", action="store_true",
+                        help="compute nothing: read the CSVs already in --out and print the checks' markdown table")
+    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+
+
+def run(args: argparse.Namespace) -> int:
+    out = Path(args.out)
+    if args.table_only:
+        tables = load_tables(out)
+        print(paper_checks.render_markdown(paper_checks.run_checks(tables)))
+        return 0
+    report = generate(out, quick=args.quick, names=args.only, csv_files=not args.no_csv,
+                      show_progress=not args.no_progress)
+    for p in report.files:
+        print(f"wrote {p}")
+    print(f"{report.states} equilibria in {report.seconds:.1f} s; "
+          f"{report.unconverged} did not converge" + (" (see the 'converged' column)" if report.unconverged else ""))
+    status = 0 if report.unconverged == 0 else 1
+    if args.only is None:
+        results = paper_checks.run_checks(report.tables)
+        md = paper_checks.render_markdown(results)
+        if not args.no_csv:
+            (out / "paper_checks.md").write_text(md + "\n")
+            print(f"wrote {out / 'paper_checks.md'}")
+        print()
+        print(md)
+        if any(r.passed != r.expected for r in results):
+            print("\nsome checks disagree with their expected outcome (see the table)", file=sys.stderr)
+            status = 1
+    return status
