@@ -293,11 +293,6 @@ class EnvConfig:
         """Read a YAML file of config keys (any subset, nested by section or flat; the rest default)."""
         return load_config(Path(path))
 
-    @classmethod
-    def keys(cls) -> tuple[str, ...]:
-        """Every field's name (each is a valid flat key)."""
-        return tuple(f.name for c in SECTIONS.values() for f in dataclasses.fields(c))
-
 
 # ---- value checks by field type -----------------------------------------------------------------------------
 

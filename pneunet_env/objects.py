@@ -135,10 +135,6 @@ class GraspObject:
         k = np.broadcast_to(np.asarray(stiffness, dtype=float), np.shape(obj.stiffness))
         return dataclasses.replace(obj, stiffness=_as(k.copy()))
 
-    def stiffness_kpa_per_mm(self, scales: Scales = DEFAULT_SCALES):
-        """``k_obj`` in kPa/mm (traction per mm of indentation) at the given scales."""
-        return self.stiffness * scales.shear_modulus_kpa / scales.width_mm
-
 
 def _check_positive(name, value):
     a = np.asarray(value, dtype=float)

@@ -82,6 +82,7 @@ __all__ = [
     "object_thresholds",
     "check_action",
     "single_action",
+    "batch_actions",
     "update_pressure",
     "initial_state",
     "transition",
@@ -342,21 +343,60 @@ def check_action(action):
     return a
 
 
-def single_action(action) -> float:
-    """A single env's action (shape ``(1,)``, or any one-number array-like) as a Python float.
+_REAL_KINDS = "iuf"  # numpy dtype kinds of real numbers (not bool, complex, strings or objects)
 
-    ``ValueError`` naming it if it is not one real number. (NaN and inf are caught by
+
+def _real_array(action, name: str, shape_hint: str) -> np.ndarray:
+    """``action`` as a float64 array if it is real numbers; ``TypeError`` naming what it got otherwise."""
+    if isinstance(action, (str, bytes, bool, np.bool_)) or action is None:
+        raise TypeError(f"{name} must be real numbers {shape_hint}, got {type(action).__name__} {action!r}")
+    try:
+        raw = np.asarray(action)
+    except (TypeError, ValueError, OverflowError):
+        raise TypeError(f"{name} must be real numbers {shape_hint}, got {action!r}") from None
+    if raw.dtype.kind not in _REAL_KINDS:
+        if raw.dtype.kind == "O" and all(type(v) is int for v in raw.ravel()):  # ints too large for int64
+            try:
+                return np.array([float(v) for v in raw.ravel()], dtype=np.float64).reshape(raw.shape)
+            except OverflowError:
+                raise ValueError(f"{name} {action!r} is too large for a float") from None
+        raise TypeError(f"{name} must be real numbers {shape_hint}, got dtype {raw.dtype}: {action!r}")
+    return raw.astype(np.float64, copy=False)
+
+
+def single_action(action) -> float:
+    """A single env's action as a Python float: a real number, or an array of shape ``(1,)`` (or ``()``).
+
+    ``TypeError`` naming it for anything that is not real numbers (``None``, strings, booleans, complex numbers,
+    objects); ``ValueError`` for the wrong shape or a number too large for a float. (NaN and inf are caught by
     :func:`update_pressure`.) The common case, a float array of shape ``(1,)``, is read directly.
     """
     if type(action) is np.ndarray and action.shape == (1,) and action.dtype.kind == "f":
         return float(action[0])
-    try:
-        arr = np.asarray(action, dtype=np.float64)
-    except (TypeError, ValueError):
-        raise ValueError(f"action must be a real number (shape (1,)), got {action!r}") from None
-    if arr.size != 1:
-        raise ValueError(f"action must hold one number (shape (1,)), got shape {arr.shape}: {action!r}")
-    return arr.item()
+    if type(action) in (float, int):
+        try:
+            return float(action)
+        except OverflowError:
+            raise ValueError(f"action {action!r} is too large for a float") from None
+    arr = _real_array(action, "action", "(a number, or shape (1,))")
+    if arr.shape not in ((1,), ()):
+        raise ValueError(f"action must have shape (1,), got shape {arr.shape}: {action!r}")
+    return float(arr.reshape(-1)[0])
+
+
+def batch_actions(actions, n: int) -> np.ndarray:
+    """A batch's actions, shape ``(n, 1)`` or ``(n,)``, as a float64 ``(n,)`` array; errors name what they got
+    (``TypeError`` for what is not real numbers, ``ValueError`` for the shape or a NaN/inf, with its index)."""
+    a = _real_array(actions, "actions", f"of shape ({n}, 1)")
+    if a.shape == (n, 1):
+        a = a[:, 0]
+    elif a.shape != (n,):
+        raise ValueError(f"actions must have shape ({n}, 1) (or ({n},)), got shape {a.shape}")
+    bad = ~np.isfinite(a)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise ValueError(f"actions[{i}] must be finite (no NaN or inf), got {a[i]!r}")
+    return a
 
 
 def update_pressure(pressure, action, params: TaskParams):

@@ -231,14 +231,6 @@ def bench_vector(num_envs: tuple[int, ...], env_steps: int, min_steps: int, repe
 # --------------------------------------------------------------------------------------------------------
 
 
-def _solve_workload(n: int, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Random walks of pressure (steps of at most 3 kPa = 0.06 p~, the env's) for random objects."""
-    rng = np.random.default_rng(seed)
-    kobj = np.where(rng.random(n) < 0.15, 0.0, 10.0 ** rng.uniform(-5.0, -1.0, n))
-    p = np.clip(np.cumsum(rng.uniform(-0.06, 0.06, n)), 0.0, 1.2)
-    return kobj, p, rng.uniform(0.0, 1.2, 16)
-
-
 def bench_solves(calls: int, batch_n: int, seed: int = 0, backend: str = "auto",
                  acc: _Accuracy | None = None) -> dict[str, Any]:
     """``solve_equilibrium`` calls/s (warm-started walks), ``step_state`` from Python, ``solve_batch`` per env."""

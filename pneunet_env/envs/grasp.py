@@ -12,6 +12,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
+from gymnasium.error import ResetNeeded
 
 from pneunet_env import task
 from pneunet_env.config import EnvConfig, load_config
@@ -145,6 +146,7 @@ class PneuNetGraspEnv(gym.Env):
         self.action_space = spaces.Box(-1.0, 1.0, (1,), np.float32)
         self.observation_space = observation_space(self.config)
         self._state: task.EnvState | None = None
+        self._ended = False
         self._static_info: dict[str, Any] | None = None
         self._viewer = None
 
@@ -155,11 +157,6 @@ class PneuNetGraspEnv(gym.Env):
         return self._state
 
     @property
-    def object(self):
-        """The current episode's :class:`pneunet_env.objects.GraspObject` (``None`` before ``reset``)."""
-        return None if self._state is None else self._state.obj
-
-    @property
     def equilibrium(self) -> Equilibrium | None:
         """The current quasi-static state (an :class:`~pneunet_env.physics.solver.Equilibrium`)."""
         return None if self._state is None else self._state.eq
@@ -167,6 +164,7 @@ class PneuNetGraspEnv(gym.Env):
     # ---- Gymnasium API -----------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
+        self._ended = False
         if options is not None and not isinstance(options, dict):
             raise ValueError(f"options must be a dict of object properties to pin, got {options!r}")
         obj = task.sample_object(self.np_random, self.config, pinned=options)
@@ -181,13 +179,16 @@ class PneuNetGraspEnv(gym.Env):
 
     def step(self, action):
         if self._state is None:
-            raise RuntimeError("call reset() before step()")
+            raise ResetNeeded("call reset() before step()")
+        if self._ended:
+            raise ResetNeeded("the episode has ended (terminated or truncated): call reset() before step()")
         res = task.step(self._state, task.single_action(action), self._params, task.newton_contact)
         self._state = res.state
         info = task.build_info(res.state, self._params.task, res, self.info_level, self._static_info)
         terminated, truncated = bool(res.terminated), bool(res.truncated)
         if terminated or truncated:
             info["is_success"] = bool(res.outcome.success)
+            self._ended = True
         if self.render_mode == "human":
             self.render()
         return res.obs, float(res.reward), terminated, truncated, info

@@ -23,6 +23,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
+from gymnasium.error import ResetNeeded
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
@@ -442,22 +443,6 @@ class PneuNetGraspVectorEnv(VectorEnv):
                 self._streams.seed(sel, _seed_words([seeds[i] for i in sel], sel.size))
         self._seeded = True
 
-    def _check_actions(self, actions) -> np.ndarray:
-        n = self.num_envs
-        try:
-            a = np.asarray(actions, dtype=np.float64)
-        except (TypeError, ValueError):
-            raise ValueError(f"actions must be real numbers of shape ({n}, 1), got {actions!r}") from None
-        if a.shape == (n, 1):
-            a = a[:, 0]
-        elif a.shape != (n,):
-            raise ValueError(f"actions must have shape ({n}, 1) (or ({n},)), got shape {a.shape}")
-        bad = ~np.isfinite(a)
-        if bad.any():
-            i = int(np.flatnonzero(bad)[0])
-            raise ValueError(f"actions[{i}] must be finite (no NaN or inf), got {a[i]!r}")
-        return a
-
     def _info(self, state: task.EnvState, res: task.Step | None, mask: np.ndarray | None) -> dict[str, Any]:
         """The info of ``state`` (after ``res``, or at reset), as Gymnasium's vector info: ``(N,)`` arrays, each
         with a ``_key`` mask (``mask``, or all true). Fresh arrays: the state is never handed out."""
@@ -480,8 +465,8 @@ class PneuNetGraspVectorEnv(VectorEnv):
 
     def step(self, actions):
         if self._state is None:
-            raise RuntimeError("call reset() before step()")
-        a = self._check_actions(actions)
+            raise ResetNeeded("call reset() before step()")
+        a = task.batch_actions(actions, self.num_envs)
         res = task.step(self._state, a, self._params, self._contact)
         terminated = np.asarray(res.terminated, dtype=bool)
         truncated = np.asarray(res.truncated, dtype=bool)
@@ -543,6 +528,3 @@ class PneuNetGraspVectorEnv(VectorEnv):
         r = self.config.render
         return tuple(render_frame(self.render_state(i), r.width, r.height, chambers=r.chambers)
                      for i in range(self.num_envs))
-
-    def close_extras(self, **kwargs: Any) -> None:
-        pass

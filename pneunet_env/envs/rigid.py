@@ -62,15 +62,14 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
+from gymnasium.error import ResetNeeded
 
 from pneunet_env import task
 from pneunet_env.config import EnvConfig, load_config
 from pneunet_env.physics.params import check_positive
 from pneunet_env.physics.solver import STATUS_CONVERGED, Equilibrium
 
-__all__ = ["RigidGraspEnv", "ENV_ID", "jaw_indentation", "default_jaw_travel_mm", "kinematic_contact"]
-
-ENV_ID = "RigidGrasp-v0"
+__all__ = ["RigidGraspEnv", "jaw_indentation", "default_jaw_travel_mm", "kinematic_contact"]
 
 
 def default_jaw_travel_mm(config: EnvConfig) -> float:
@@ -158,11 +157,7 @@ class RigidGraspEnv(gym.Env):
         self.action_space = spaces.Box(-1.0, 1.0, (1,), np.float32)
         self.observation_space = spaces.Box(0.0, 1.0, (1,), np.float32)
         self._state: task.EnvState | None = None
-
-    @property
-    def object(self):
-        """The current episode's :class:`pneunet_env.objects.GraspObject` (``None`` before ``reset``)."""
-        return None if self._state is None else self._state.obj
+        self._ended = False
 
     @property
     def state(self) -> task.EnvState | None:
@@ -176,6 +171,7 @@ class RigidGraspEnv(gym.Env):
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
+        self._ended = False
         if options is not None and not isinstance(options, dict):
             raise ValueError(f"options must be a dict of object properties to pin, got {options!r}")
         obj = task.sample_object(self.np_random, self.config, pinned=options)
@@ -185,11 +181,14 @@ class RigidGraspEnv(gym.Env):
 
     def step(self, action):
         if self._state is None:
-            raise RuntimeError("call reset() before step()")
+            raise ResetNeeded("call reset() before step()")
+        if self._ended:
+            raise ResetNeeded("the episode has ended (terminated or truncated): call reset() before step()")
         res = task.step(self._state, task.single_action(action), self._params, self._contact)
         self._state = res.state
         info = self._info(res)
         terminated, truncated = bool(res.terminated), bool(res.truncated)
         if terminated or truncated:
             info["is_success"] = bool(res.outcome.success)
+            self._ended = True
         return res.obs, float(res.reward), terminated, truncated, info

@@ -63,7 +63,6 @@ __all__ = [
     "Table",
     "classify_regimes",
     "compute_curve",
-    "figure_specs",
     "generate",
     "linear_rows",
     "pressure_grid",
@@ -617,11 +616,6 @@ class FigureDef:
     specs: Callable[[Grid], list[CurveSpec]]
     plot: Callable[[Table, Path], None]
     extra: Callable[[Grid], Table] | None = None
-
-
-def figure_specs(grid: Grid) -> dict[str, list[CurveSpec]]:
-    """Every figure's curves at resolution ``grid``."""
-    return {name: f.specs(grid) for name, f in FIGURES.items()}
 
 
 # --------------------------------------------------------------------------------------------- summaries

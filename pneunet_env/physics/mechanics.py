@@ -41,7 +41,6 @@ __all__ = [
     "in_domain",
     "volume_change",
     "volume_gradient",
-    "top_strain",
     "first_invariant",
     "kcot_half",
     "make_terms",
@@ -175,7 +174,7 @@ def _smax(a, b):
 
 
 _np_kcot, _np_terms = make_terms(np.log, np.sin, np.cos, np.where, np.maximum, np.abs)
-_scalar_kcot, scalar_terms = make_terms(math.log, math.sin, math.cos, _swhere, _smax, abs)
+scalar_terms = make_terms(math.log, math.sin, math.cos, _swhere, _smax, abs)[1]
 """``scalar_terms``: the energy kernel on Python floats (pure ``math``; the solver may numba-compile it)."""
 
 
@@ -262,9 +261,3 @@ def first_invariant(e):
     """``I1(e) = 2 (1+e)^2 + (1+e)^-4`` of an incompressible, equibiaxially stretched wall (eq. 2.10)."""
     a = 1.0 + np.asarray(e, dtype=float)
     return 2.0 * a * a + a**-4
-
-
-def top_strain(kappa, side_strain, params: ActuatorParams):
-    """The top wall's strain ``e_m = d (1 + e_s) kappa~`` (eq. 2.2)."""
-    return params.chamber_height * (1.0 + np.asarray(side_strain, dtype=float)) * np.asarray(kappa, dtype=float)
-

@@ -16,7 +16,7 @@ reached from the previous state. The pieces, from the inside out:
   So the result does not depend on how the caller spaces its pressures, except at a fold (located
   to within ``min_step``).
 
-Both are scalar code, written once in :func:`make_solver` over any energy kernel with the signature
+Both are scalar code, written once in :func:`_make_parts` over any energy kernel with the signature
 of :data:`pneunet_env.physics.mechanics.scalar_terms`; with numba installed they are compiled.
 """
 
@@ -40,7 +40,6 @@ __all__ = [
     "LoadPath",
     "STATUS_MESSAGES",
     "status_message",
-    "make_solver",
     "make_sym2",
     "minimise_state",
     "solve_equilibrium",
@@ -209,12 +208,17 @@ sym2_eigvals, sym2_eigvec = make_sym2(math.hypot, math.atan2, math.cos, math.sin
 
 
 def _make_parts(terms, jit=njit):
-    """The solver's compiled pieces over ``terms``; see :func:`make_solver`.
+    """The solver's pieces over an energy kernel ``terms`` (:func:`pneunet_env.physics.mechanics.make_terms`'s),
+    compiled by ``jit``: ``(evaluate, minimise, follow_ev)``.
 
-    Besides ``minimise`` and ``follow`` this returns ``evaluate`` (the kernel on a packed parameter
-    tuple), ``descend`` (the Newton descent from a point whose evaluation is already known, returning
-    the evaluation at its result too, so no point is evaluated twice) and ``follow_ev`` (``follow``
-    plus that final evaluation, from which the volume change is read).
+    * ``evaluate(k, s, p, prm, kobj, ko)``: the kernel on a packed parameter tuple;
+    * ``minimise(k, s, p, prm, kobj, ko, gtol, max_iter, eig_floor) -> (k, s, U, |g|, lam_min, iters, status)``:
+      the safeguarded descent at fixed pressure;
+    * ``follow_ev(k, s, p0, p1, prm, kobj, ko, opts)``: the continuation (:data:`step_state`).
+
+    Inside, ``descend`` is the Newton descent from a point whose evaluation is already known, returning the
+    evaluation at its result too, so no point is evaluated twice. ``prm`` is :func:`params_tuple`, ``opts``
+    :meth:`SolverOptions.as_tuple`; ``status`` indexes :data:`STATUS_MESSAGES`.
     """
 
     @jit
@@ -368,36 +372,18 @@ def _make_parts(terms, jit=njit):
             h = STEP_AFTER_FOLD * max_step
         return k, s, U, gn, lmin, iters, substeps, snapped, status, ev[7] if ev[0] else math.nan
 
-    @jit
-    def follow(k, s, p0, p1, prm, kobj, ko, opts):
-        r = follow_ev(k, s, p0, p1, prm, kobj, ko, opts)
-        return r[0], r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8]
-
-    return evaluate, descend, minimise, follow_ev, follow
+    return evaluate, minimise, follow_ev
 
 
-def make_solver(terms, jit=njit):
-    """Build ``(minimise, follow)`` for an energy kernel ``terms`` (see :func:`~.mechanics.make_terms`).
-
-    ``minimise(k, s, p, prm, kobj, ko, gtol, max_iter, eig_floor) -> (k, s, U, |g|, lam_min, iters, status)``
-    ``follow(k, s, p0, p1, prm, kobj, ko, opts) -> (k, s, U, |g|, lam_min, iters, substeps, snapped, status)``
-
-    ``prm`` is :meth:`ActuatorParams.as_tuple`, ``opts`` is :meth:`SolverOptions.as_tuple`; ``status``
-    indexes :data:`STATUS_MESSAGES`.
-    """
-    parts = _make_parts(terms, jit)
-    return parts[2], parts[4]
-
-
-_evaluate, _descend, _minimise, _follow_ev, _follow = _make_parts(mechanics.make_terms(
+_evaluate, _minimise, _follow_ev = _make_parts(mechanics.make_terms(
     math.log, math.sin, math.cos, njit(mechanics._swhere), njit(mechanics._smax), abs, jit=njit
 )[1])
 step_state = _follow_ev
 """The fast entry point: ``step_state(kappa~, e_s, p0, p1, prm, k~_obj, w kappa_obj, opts)`` returns
 ``(kappa~, e_s, U, |grad|, lam_min, iterations, substeps, snapped, status, volume_change)``.
 
-It is the compiled continuation behind :func:`solve_equilibrium` (same arguments as ``follow``, see
-:func:`make_solver`), from an equilibrium ``(kappa~, e_s)`` at ``p0`` to ``p1``, with no validation and
+It is the compiled continuation behind :func:`solve_equilibrium` (see :func:`_make_parts`), from an equilibrium
+``(kappa~, e_s)`` at ``p0`` to ``p1``, with no validation and
 no objects built: for callers on a hot path (an env's step), about a microsecond for a small pressure
 step with numba. ``prm`` is :func:`params_tuple`, ``opts`` :meth:`SolverOptions.as_tuple`; ``status``
 indexes :data:`STATUS_MESSAGES` (``<= 1``: converged); ``volume_change`` is ``(V1 - V0)/(w^2 t)`` at the

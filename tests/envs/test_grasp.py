@@ -5,6 +5,7 @@ from __future__ import annotations
 import gymnasium as gym
 import numpy as np
 import pytest
+from gymnasium.error import ResetNeeded
 from gymnasium.utils.env_checker import check_env
 
 import pneunet_env  # noqa: F401  (registers the environment)
@@ -146,8 +147,42 @@ def test_out_of_range_actions_are_clipped_and_reported():
 
 
 def test_step_before_reset_raises():
-    with pytest.raises(RuntimeError, match="reset"):
+    with pytest.raises(ResetNeeded, match="reset"):
         PneuNetGraspEnv().step(np.array([0.0]))
+
+
+@pytest.mark.parametrize("env_id", ["PneuNetGrasp-v0", "RigidGrasp-v0"])
+def test_step_after_the_episode_ended_asks_for_reset(env_id):
+    env = gym.make(env_id).unwrapped  # unwrapped: no TimeLimit or order checks in front of it
+    env.reset(seed=0, options={"object_stiffness": 1e-2})
+    done = False
+    while not done:
+        _, _, terminated, truncated, _ = env.step(np.array([1.0], np.float32))
+        done = terminated or truncated
+    with pytest.raises(ResetNeeded, match="call reset"):
+        env.step(np.array([0.0], np.float32))  # no more success reward after the end
+    env.reset(seed=1)
+    env.step(np.array([0.0], np.float32))
+
+
+@pytest.mark.parametrize(("action", "error", "match"), [
+    ("1", TypeError, "str"),
+    (np.array(["1"]), TypeError, "dtype <U1"),
+    (np.array([1 + 1j]), TypeError, "complex"),
+    (None, TypeError, "None"),
+    (True, TypeError, "bool"),
+    (10**400, ValueError, "too large"),
+    ([0.1, 0.2], ValueError, "shape"),
+    (np.array([[0.5]]), ValueError, "shape"),
+    ({"a": 1}, TypeError, "dtype object"),
+])
+def test_bad_actions_are_named(action, error, match):
+    env = PneuNetGraspEnv()
+    env.reset(seed=0)
+    with pytest.raises(error, match=match):
+        env.step(action)
+    for ok in (0.5, 1, np.float32(0.3), [0.2], np.array(0.1), np.array([0.4], np.float64)):
+        env.step(ok)
 
 
 # ---- many random steps --------------------------------------------------------------------------------------
@@ -249,7 +284,7 @@ def test_firm_schedule_on_a_stiff_object_is_held():
 
 
 def test_reset_pins_and_info_units():
-    env = gym.make("PneuNetGrasp-v0", info_level="full")
+    env = gym.make("PneuNetGrasp-v0", info_level="full", terminate_on_damage=False, terminate_on_slip=False)
     _, info = env.reset(seed=0, options={"object_shear_modulus_kpa": 15.0, "object_thickness_mm": 8.0})
     assert info["object_shear_modulus_kpa"] == 15.0 and info["object_thickness_mm"] == 8.0
     assert info["pressure"] == 0.0 and info["curvature"] == 0.0 and not info["in_contact"]

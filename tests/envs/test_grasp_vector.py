@@ -7,6 +7,7 @@ import dataclasses
 import gymnasium as gym
 import numpy as np
 import pytest
+from gymnasium.error import ResetNeeded
 from gymnasium.vector import AutoresetMode
 
 import pneunet_env  # noqa: F401  (registers the environment)
@@ -350,12 +351,16 @@ def test_equilibrium_of_a_sub_env_is_the_single_envs():
 def test_bad_actions_raise_naming_the_value(actions, match):
     env = PneuNetGraspVectorEnv(3)
     env.reset(seed=0)
-    with pytest.raises(ValueError, match=match):
+    with pytest.raises((ValueError, TypeError), match=match):
         env.step(actions)
+    for bad, error in [(np.array([["1"]] * 3), TypeError), (np.full((3, 1), 1j), TypeError), (None, TypeError),
+                       (np.ones((3, 1), bool), TypeError), ([[10**400]] * 3, ValueError)]:
+        with pytest.raises(error, match="actions"):
+            env.step(bad)
 
 
 def test_bad_arguments_raise():
-    with pytest.raises(RuntimeError, match="reset"):
+    with pytest.raises(ResetNeeded, match="reset"):
         PneuNetGraspVectorEnv(2).step(np.zeros((2, 1)))
     for kwargs, match in [(dict(num_envs=0), "num_envs"), (dict(num_envs=2.5), "num_envs"),
                           (dict(backend="cuda"), "backend"), (dict(render_mode="human"), "render_mode"),

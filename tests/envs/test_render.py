@@ -69,7 +69,8 @@ def test_indentation_is_drawn():
 
 
 def test_render_modes_through_the_env(monkeypatch):
-    env = gym.make("PneuNetGrasp-v0", render_mode="rgb_array", render_width=160, render_height=120)
+    env = gym.make("PneuNetGrasp-v0", render_mode="rgb_array", render_width=160, render_height=120,
+                   terminate_on_damage=False)
     env.reset(seed=0, options={"object_stiffness": 1e-5})
     f0 = env.render()
     for _ in range(15):
