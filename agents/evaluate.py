@@ -37,6 +37,8 @@ from typing import Any
 
 import numpy as np
 
+from pneunet_env.cli.progress import add_progress_argument
+from pneunet_env.cli.progress import progress as progress_bar
 from pneunet_env.config import EnvConfig, load_config
 
 __all__ = ["run_episode", "stiffness_grid", "evaluate_policies", "evaluate_distribution", "decade_table",
@@ -127,11 +129,14 @@ def episode_seed(seed: int, grid_index: int, episode: int) -> int:
 
 
 def evaluate_policies(entries, config: EnvConfig, grid, episodes: int, seed: int = 0,
-                      progress: bool = True) -> list[dict[str, Any]]:
-    """Rows ``{policy, label, object_stiffness, success_rate, damage_rate, slip_rate, ...}``: one per policy, ``k~``."""
+                      progress: bool | None = None) -> list[dict[str, Any]]:
+    """Rows ``{policy, label, object_stiffness, success_rate, damage_rate, slip_rate, ...}``: one per policy, ``k~``.
+
+    ``progress``: a bar on stderr; ``None`` (default): when stderr is a terminal.
+    """
     if int(episodes) != episodes or episodes < 1:
         raise ValueError(f"episodes must be an integer >= 1, got {episodes!r}")
-    bar = _bar(len(entries) * len(grid) * episodes, "evaluate", progress)
+    bar = progress_bar(total=len(entries) * len(grid) * episodes, desc="evaluate", unit="episode", enabled=progress)
     rows = []
     for entry in entries:
         env = entry.make_env(config)
@@ -139,8 +144,7 @@ def evaluate_policies(entries, config: EnvConfig, grid, episodes: int, seed: int
             res = []
             for e in range(episodes):
                 res.append(run_episode(env, entry.policy, episode_seed(seed, i, e), {"object_stiffness": float(k)}))
-                if bar is not None:
-                    bar.update()
+                bar.update()
             rows.append({
                 "policy": entry.name,
                 "label": entry.label,
@@ -155,8 +159,7 @@ def evaluate_policies(entries, config: EnvConfig, grid, episodes: int, seed: int
                 "solver_failures": int(sum(r["solver_failed"] for r in res)),
             })
         env.close()
-    if bar is not None:
-        bar.close()
+    bar.close()
     return rows
 
 
@@ -165,19 +168,18 @@ HELD_OUT_SEED = 1_000_000_000
 
 
 def evaluate_distribution(entries, config: EnvConfig, n_objects: int, seed: int = 0,
-                          progress: bool = True) -> dict[str, dict[str, float]]:
+                          progress: bool | None = None) -> dict[str, dict[str, float]]:
     """Each policy on ``n_objects`` objects drawn from the env's own distribution (held-out seeds
     ``HELD_OUT_SEED + seed * 1_000_003 + i``): ``{policy: {success_rate, damage_rate, slip_rate, objects, ...}}``."""
     seeds = [HELD_OUT_SEED + seed * 1_000_003 + i for i in range(n_objects)]
-    bar = _bar(len(entries) * n_objects, "distribution", progress)
+    bar = progress_bar(total=len(entries) * n_objects, desc="distribution", unit="episode", enabled=progress)
     out = {}
     for entry in entries:
         env = entry.make_env(config)
         res = []
         for s in seeds:
             res.append(run_episode(env, entry.policy, s))
-            if bar is not None:
-                bar.update()
+            bar.update()
         env.close()
         k = np.array([r["stiffness"] for r in res])
         ok = np.array([r["success"] for r in res])
@@ -191,8 +193,7 @@ def evaluate_distribution(entries, config: EnvConfig, n_objects: int, seed: int 
             "objects_soft": int((k < SOFT_MAX).sum()),
             "objects_stiff": int((k >= STIFF_MIN).sum()),
         }
-    if bar is not None:
-        bar.close()
+    bar.close()
     return out
 
 
@@ -208,16 +209,6 @@ def record_schedules(entries, config: EnvConfig, stiffnesses, seed: int = 0) -> 
             out.append(r)
         env.close()
     return out
-
-
-def _bar(total: int, desc: str, enabled: bool, unit: str = "episode"):
-    if not enabled:
-        return None
-    try:
-        from tqdm import tqdm
-    except ImportError:  # pragma: no cover - tqdm ships with the rl/plot extras
-        return None
-    return tqdm(total=total, desc=desc, unit=unit, leave=False)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -458,7 +449,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="also run N objects drawn from the env's own distribution (held-out seeds) and report "
                              "each policy's overall success rate (default 0: none)")
     parser.add_argument("--no-plots", action="store_true", help="skip the PNGs")
-    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_progress_argument(parser, "--quiet")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -477,11 +468,11 @@ def run(args: argparse.Namespace) -> int:
     if len(set(names)) != len(names):
         raise SystemExit(f"pneunet-grasp evaluate: a policy is given twice: {names}")
     t0 = time.perf_counter()
-    rows = evaluate_policies(entries, config, grid, args.episodes, args.seed, progress=not args.quiet)
+    rows = evaluate_policies(entries, config, grid, args.episodes, args.seed, progress=args.progress)
     traces = record_schedules(entries, config, args.schedule_stiffness, args.seed)
     if args.objects < 0:
         raise SystemExit(f"pneunet-grasp evaluate: --objects must be >= 0, got {args.objects}")
-    dist = evaluate_distribution(entries, config, args.objects, args.seed, not args.quiet) if args.objects else None
+    dist = evaluate_distribution(entries, config, args.objects, args.seed, args.progress) if args.objects else None
     elapsed = time.perf_counter() - t0
 
     print(f"pneunet-grasp evaluate: {len(entries)} policies x {len(grid)} stiffnesses "

@@ -33,8 +33,10 @@ from typing import Any
 
 import numpy as np
 
-from agents.evaluate import _bar, parse_overrides, run_episode
+from agents.evaluate import parse_overrides, run_episode
 from agents.scripted import LinearRamp, save_ramp
+from pneunet_env.cli.progress import add_progress_argument
+from pneunet_env.cli.progress import progress as progress_bar
 from pneunet_env.config import EnvConfig, load_config
 
 __all__ = ["Candidate", "object_seeds", "score", "grid_search", "search_ramp", "SENSITIVITY_SETTINGS",
@@ -129,7 +131,7 @@ def make_env(config: EnvConfig, gripper: str):
 
 def search_ramp(config: EnvConfig | None = None, gripper: str = "pneunet", n_objects: int = 200, seed: int = 0,
                 targets: Sequence[float] = COARSE_TARGETS, durations: Sequence[int] = DURATIONS,
-                refine: float = 0.005, progress: bool = True) -> tuple[Candidate, list[Candidate]]:
+                refine: float = 0.005, progress: bool | None = None) -> tuple[Candidate, list[Candidate]]:
     """The best ramp over ``n_objects`` seeded objects: a grid over ``targets`` x ``durations``, then a grid of
     spacing ``refine`` around the best target (``0`` skips it). Returns ``(best, every candidate scored)``."""
     config = EnvConfig() if config is None else config
@@ -144,19 +146,17 @@ def search_ramp(config: EnvConfig | None = None, gripper: str = "pneunet", n_obj
     env = make_env(config, gripper)
     seeds = object_seeds(n_objects, seed)
     spacing = float(min(np.diff(targets))) if len(targets) > 1 else 0.0
-    bar = _bar(len(durations) * len(targets), f"search {gripper}", progress, unit="ramp")
+    bar = progress_bar(total=len(durations) * len(targets), desc=f"search {gripper}", unit="ramp", enabled=progress)
     cache: dict = {}
     best = best_candidate(grid_search(env, config, seeds, targets, durations, bar, cache))
     if refine > 0 and spacing > refine:
         lo, hi = max(refine, best.target - spacing), min(1.0, best.target + spacing)
         fine = [float(t) for t in np.arange(lo, hi + refine / 2, refine) if 0.0 < t <= 1.0]
-        if bar is not None:
-            bar.total += len(fine) * len(durations)
-            bar.refresh()
+        bar.total += len(fine) * len(durations)
+        bar.refresh()
         grid_search(env, config, seeds, fine, durations, bar, cache)
         best = best_candidate(list(cache.values()))
-    if bar is not None:
-        bar.close()
+    bar.close()
     env.close()
     return best, list(cache.values())
 
@@ -249,7 +249,7 @@ SENSITIVITY_SETTINGS: tuple[tuple[str, str, dict[str, Any]], ...] = (
 
 
 def sensitivity_study(out: Path, settings=SENSITIVITY_SETTINGS, n_objects: int = 120, grid: int = 25,
-                      episodes: int = 1, seed: int = 0, progress: bool = True,
+                      episodes: int = 1, seed: int = 0, progress: bool | None = None,
                       log: Callable[[str], Any] = print) -> list[dict[str, Any]]:
     """For each setting: search best-ramp and rigid, evaluate them and the oracle on a grid; write the outputs.
 
@@ -397,7 +397,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--sensitivity", action="store_true",
                         help="run the threshold sensitivity study instead (writes sensitivity.{json,md,png} to --out)")
     parser.add_argument("--grid", type=int, default=25, help="--sensitivity: stiffness grid size (default 25)")
-    parser.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_progress_argument(parser, "--quiet")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -406,7 +406,7 @@ def run(args: argparse.Namespace) -> int:
     if args.sensitivity:
         out = Path("docs/img/results") if args.out is None else args.out
         sensitivity_study(out, n_objects=args.objects if args.objects != 200 else 120, grid=args.grid, seed=args.seed,
-                          progress=not args.quiet)
+                          progress=args.progress)
         print(f"wrote {out / 'sensitivity.json'}, {out / 'sensitivity.md'}, {out / 'sensitivity.png'}")
         return 0
     try:
@@ -414,7 +414,7 @@ def run(args: argparse.Namespace) -> int:
         config = load_config(args.config, **overrides)
         t0 = time.perf_counter()
         best, cands = search_ramp(config, args.gripper, args.objects, args.seed, args.targets, args.durations,
-                                  args.refine, progress=not args.quiet)
+                                  args.refine, progress=args.progress)
     except ValueError as exc:
         raise SystemExit(f"agents.search: {exc}") from None
     elapsed = time.perf_counter() - t0

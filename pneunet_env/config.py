@@ -363,17 +363,45 @@ def _build_section(section: str, values: Mapping[str, Any]):
 # ---- loading -----------------------------------------------------------------------------------------------
 
 
+_FLOAT_12 = (r"^[-+]?(?:\.[0-9]+|[0-9]+(?:\.[0-9]*)?)(?:[eE][-+]?[0-9]+)?$"
+             r"|^[-+]?\.(?:inf|Inf|INF)$|^\.(?:nan|NaN|NAN)$")
+"""YAML 1.2's float: ``1e-11`` is a number (PyYAML follows YAML 1.1, where it is a string without a dot)."""
+
+
+def _yaml_loader():
+    """A safe YAML loader that reads YAML 1.2 floats (``1e-11``) and rejects duplicate keys."""
+    import re
+
+    import yaml
+
+    class Loader(yaml.SafeLoader):
+        pass
+
+    def mapping(loader, node, deep=False):
+        seen = set()
+        for key_node, _ in node.value:
+            key = loader.construct_object(key_node, deep=deep)
+            if key in seen:
+                raise ValueError(f"duplicate key {key!r} (line {key_node.start_mark.line + 1})")
+            seen.add(key)
+        return yaml.SafeLoader.construct_mapping(loader, node, deep=deep)
+
+    Loader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, mapping)
+    Loader.add_implicit_resolver("tag:yaml.org,2002:float", re.compile(_FLOAT_12), list("-+.0123456789"))
+    return Loader
+
+
 def _read_yaml(path: Path) -> dict[str, Any]:
     import yaml
 
     try:
         text = path.read_text()
-    except OSError as exc:
+    except (OSError, UnicodeDecodeError) as exc:
         raise ValueError(f"cannot read config file {str(path)!r}: {exc}") from None
     try:
-        data = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        raise ValueError(f"config file {str(path)!r} is not valid YAML: {exc}") from None
+        data = yaml.load(text, Loader=_yaml_loader())  # a SafeLoader: no Python objects are built
+    except (yaml.YAMLError, ValueError) as exc:
+        raise ValueError(f"config file {str(path)!r} is not valid: {exc}") from None
     if data is None:
         return {}
     if not isinstance(data, dict):

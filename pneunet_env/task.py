@@ -276,9 +276,11 @@ def _batch_object(shear_modulus_kpa, stiffness, thickness_mm, curvature_per_m, d
 
 
 def _pin(key: str, value: Any, shape: tuple[int, ...], batch: bool = False):
+    if isinstance(value, (str, bytes, bool, np.bool_)):
+        raise ValueError(f"reset option {key!r} must be a number, got {value!r}")
     try:
         a = np.asarray(value, dtype=float)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise ValueError(f"reset option {key!r} must be a number, got {value!r}") from None
     if not np.all(np.isfinite(a)):
         raise ValueError(f"reset option {key!r} must be finite, got {value!r}")

@@ -131,3 +131,13 @@ def test_core_imports_without_torch_numba_or_matplotlib_and_registers_every_env(
     assert res.returncode == 0 and res.stdout.strip() == "ok", res.stderr
     for env_id in ("PneuNetGrasp-v0", "RigidGrasp-v0"):
         assert env_id in gym.registry
+
+
+def test_the_lowest_gymnasium_has_what_the_env_uses():
+    """``AutoresetMode`` (gymnasium.vector) arrived in Gymnasium 1.1: the requirement says so."""
+    import re
+
+    text = (ROOT.parent / "pyproject.toml").read_text()
+    m = re.search(r'"gymnasium>=(\d+)\.(\d+)', text)
+    assert m and (int(m.group(1)), int(m.group(2))) >= (1, 1), "pyproject.toml must require gymnasium>=1.1"
+    from gymnasium.vector import AutoresetMode  # noqa: F401

@@ -32,7 +32,6 @@ import argparse
 import json
 import math
 import platform
-import sys
 import time
 import warnings
 from collections.abc import Callable, Sequence
@@ -42,6 +41,8 @@ from pathlib import Path
 import numpy as np
 
 from pneunet_env.bench.models import AUTO_TOLERANCE, equilibrium_for_model
+from pneunet_env.cli.progress import add_progress_argument
+from pneunet_env.cli.progress import progress as progress_bar
 from pneunet_env.physics import mechanics
 from pneunet_env.physics._jit import HAVE_NUMBA
 from pneunet_env.physics.linear import LinearModel, linear_reach, linear_state
@@ -440,16 +441,6 @@ def classify(x, ref, p: float, k: float, ko: float, params: ActuatorParams, kind
 
 
 # ------------------------------------------------------------------------------------------ the study
-def _progress(iterable, total: int, desc: str, enabled: bool):
-    if not enabled:
-        return iterable
-    try:
-        from tqdm.auto import tqdm
-    except ImportError:  # pragma: no cover - tqdm comes with the plot/rl extras
-        return iterable
-    return tqdm(iterable, total=total, desc=desc, leave=False, file=sys.stderr)
-
-
 def _timed_path(method: Method, pressures, k, ko, params, repeats: int) -> PathRun:
     run = solve_path(method, pressures, k, ko, params)
     for _ in range(repeats - 1):  # timing only: keep the fastest pass (the answers are deterministic)
@@ -513,9 +504,12 @@ def _anchored_ramp(anchor: float, p_max: float, dp: float) -> tuple[float, ...]:
     return tuple(up + up[-2::-1])
 
 
-def run_study(quick: bool = False, repeats: int | None = None, progress: bool = True,
+def run_study(quick: bool = False, repeats: int | None = None, progress: bool | None = None,
               methods: Sequence[Method] | None = None) -> tuple[list[dict], dict]:
-    """Run the whole study; return ``(records, details)`` (what ``solvers.json`` and ``solvers_details.json`` hold)."""
+    """Run the whole study; return ``(records, details)`` (what ``solvers.json`` and ``solvers_details.json`` hold).
+
+    ``progress``: bars on stderr; ``None`` (default): when stderr is a terminal.
+    """
     repeats = (1 if quick else 3) if repeats is None else repeats
     methods = list(make_methods() if methods is None else methods)
     scenes = make_scenes(quick)
@@ -524,10 +518,10 @@ def run_study(quick: bool = False, repeats: int | None = None, progress: bool = 
 
     # 1. scenes x methods, each method warm-started from its own previous answer
     refs = {s.name: reference_states(s.pressures, s.object_stiffness, s.object_curvature, s.params)
-            for s in _progress(scenes, len(scenes), "reference paths (mpmath)", progress)}
+            for s in progress_bar(scenes, desc="reference paths (mpmath)", enabled=progress)}
     records: list[dict] = []
     tasks = [(m, s) for m in methods for s in scenes]
-    for m, s in _progress(tasks, len(tasks), "methods x scenes", progress):
+    for m, s in progress_bar(tasks, desc="methods x scenes", enabled=progress):
         run = _timed_path(m, s.pressures, s.object_stiffness, s.object_curvature, s.params, repeats)
         outcomes = _evaluate(m, run, s.pressures, refs[s.name], s.object_stiffness, s.object_curvature, s.params)
         records.append(_record(m, s, run, outcomes))
@@ -539,11 +533,11 @@ def run_study(quick: bool = False, repeats: int | None = None, progress: bool = 
     map_ks = [0.0, 1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 1e-1, 1.0] if quick else [0.0] + [
         float(v) for v in np.logspace(-6, 0, 13)]
     map_refs = {k: reference_states(map_ps, k, 0.02, params)
-                for k in _progress(map_ks, len(map_ks), "map reference paths", progress)}
+                for k in progress_bar(map_ks, desc="map reference paths", enabled=progress)}
     grid: dict[str, list[list[str]]] = {}
     evals: dict[str, list[list[int]]] = {}
     tasks2 = [(m, k) for m in methods for k in map_ks]
-    for m, k in _progress(tasks2, len(tasks2), "stability map", progress):
+    for m, k in progress_bar(tasks2, desc="stability map", enabled=progress):
         run = solve_steps(m, map_ps, map_refs[k], k, 0.02, params)
         grid.setdefault(m.name, []).append([o for o, _ in _evaluate(m, run, map_ps, map_refs[k], k, 0.02, params)])
         evals.setdefault(m.name, []).append([int(v) for v in run.evaluations])
@@ -562,7 +556,7 @@ def run_study(quick: bool = False, repeats: int | None = None, progress: bool = 
     steps = [0.05, 0.1, 0.2, 0.4] if quick else [0.01, 0.02, 0.05, 0.1, 0.2, 0.3, 0.4]
     step_rows = []
     tasks3 = [(m, dp) for dp in steps for m in methods]
-    for m, dp in _progress(tasks3, len(tasks3), "step sizes", progress):
+    for m, dp in progress_bar(tasks3, desc="step sizes", enabled=progress):
         ps = _anchored_ramp(anchor, p_top, dp)
         ref = reference_states(ps, k_fold, 0.02, params)
         run = solve_path(m, ps, k_fold, 0.02, params)
@@ -609,7 +603,7 @@ def _loop_status(ps, states, ref, window) -> str:
     return "captured" if ok else "missed"
 
 
-def _auto_sweep(scenes: list[Scene], refs: dict, repeats: int, progress: bool) -> dict:
+def _auto_sweep(scenes: list[Scene], refs: dict, repeats: int, progress: bool | None) -> dict:
     """``auto`` against ``full`` (the package's solver) along the scenes, for several tolerances.
 
     Times are the fastest of ``max(repeats, 5)`` passes, ``full`` and ``auto`` passes interleaved so that both
@@ -622,7 +616,7 @@ def _auto_sweep(scenes: list[Scene], refs: dict, repeats: int, progress: bool) -
     n_total = sum(len(s.pressures) for s in scenes)
     full = PackageMethod("full", "full")
     rows = []
-    for tol in _progress(tolerances, len(tolerances), "auto tolerance sweep", progress):
+    for tol in progress_bar(tolerances, desc="auto tolerance sweep", enabled=progress):
         auto = AutoMethod("auto", "auto", tol)
         t_auto, t_full, n_lin, err_ref, per_scene = 0.0, 0.0, 0, 0.0, {}
         for s in scenes:
@@ -854,7 +848,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", type=Path, default=Path("bench_out/solvers"), help="output folder")
     parser.add_argument("--repeats", type=int, default=None,
                         help="timing passes per method and scene, fastest kept (default 1 quick, 3 full)")
-    parser.add_argument("--no-progress", action="store_true", help="no progress bars")
+    add_progress_argument(parser)
 
 
 def _table(records: list[dict]) -> str:
@@ -880,7 +874,7 @@ def run(args: argparse.Namespace) -> int:
         raise SystemExit(f"--repeats must be >= 1, got {args.repeats}")
     out: Path = args.out
     out.mkdir(parents=True, exist_ok=True)
-    records, details = run_study(quick=args.quick, repeats=args.repeats, progress=not args.no_progress)
+    records, details = run_study(quick=args.quick, repeats=args.repeats, progress=args.progress)
     (out / "solvers.json").write_text(json.dumps(records, indent=1) + "\n")
     (out / "solvers_details.json").write_text(json.dumps(details, indent=1) + "\n")
     plot_speed_accuracy(records, out / "speed_accuracy.png")

@@ -33,13 +33,15 @@ import json
 import math
 import os
 import platform
-import sys
 import time
 import tracemalloc
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from pneunet_env.cli.progress import add_progress_argument
+from pneunet_env.cli.progress import progress as progress_bar
 
 __all__ = ["add_arguments", "run", "run_benchmark", "format_table", "plot", "NUM_ENVS", "TARGETS"]
 
@@ -53,24 +55,6 @@ TARGETS = {
     "gradient_norm_max": 1e-10,
 }
 """Issue 4's targets (printed next to the figures; not asserted)."""
-
-
-def _progress(total: int, enabled: bool):
-    try:
-        from tqdm.auto import tqdm
-    except ImportError:  # pragma: no cover - tqdm comes with the plot/rl extras
-        class _Null:
-            def update(self, n=1):
-                pass
-
-            def set_description_str(self, s):
-                pass
-
-            def close(self):
-                pass
-
-        return _Null()
-    return tqdm(total=total, disable=not enabled, leave=False, file=sys.stderr, unit="part")
 
 
 class _Accuracy:
@@ -360,15 +344,18 @@ def _machine() -> dict[str, Any]:
     return info
 
 
-def run_benchmark(quick: bool = False, progress: bool = True, backend: str = "auto", seed: int = 0,
+def run_benchmark(quick: bool = False, progress: bool | None = None, backend: str = "auto", seed: int = 0,
                   num_envs: tuple[int, ...] = NUM_ENVS) -> dict[str, Any]:
-    """Run every part; return the results (what ``speed.json`` holds)."""
+    """Run every part; return the results (what ``speed.json`` holds).
+
+    ``progress``: a bar on stderr; ``None`` (default): when stderr is a terminal.
+    """
     from pneunet_env.physics._jit import HAVE_NUMBA
 
     t_start = time.perf_counter()
     load_start = _load()
     acc = _Accuracy()
-    bar = _progress(3 + len(num_envs), progress)
+    bar = progress_bar(total=3 + len(num_envs), desc="bench speed", unit="part", enabled=progress)
     bar.set_description_str("single env vs CartPole")
     single = bench_single(steps=4000 if quick else 40000, rounds=4 if quick else 10, seed=seed, acc=acc)
     bar.update(1)
@@ -531,7 +518,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="output folder (speed.json, speed.png)")
     parser.add_argument("--backend", choices=("auto", "numba", "numpy"), default="auto",
                         help="the vector env's batched solver (default: numba if installed)")
-    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_progress_argument(parser)
     parser.add_argument("--plot-only", action="store_true",
                         help="measure nothing: redraw speed.png and reprint the table from OUT/speed.json")
 
@@ -552,7 +539,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"\nredrew {out}/speed.png from {path}")
         return 0
     out.mkdir(parents=True, exist_ok=True)
-    res = run_benchmark(quick=args.quick, progress=not args.no_progress, backend=args.backend)
+    res = run_benchmark(quick=args.quick, progress=args.progress, backend=args.backend)
     (out / "speed.json").write_text(json.dumps(res, indent=1) + "\n")
     plot(res, out / "speed.png")
     print(format_table(res))

@@ -1,17 +1,22 @@
 """``pneunet-grasp``: the package's command line.
 
-Each subcommand lives in its own module, imported only when it runs, so ``pneunet-grasp solve``
-needs neither torch nor matplotlib. A subcommand module provides ``add_arguments(parser)`` and
-``run(args) -> int``.
+Each subcommand lives in its own module, imported only when it runs (or is asked for its ``--help``), so
+``pneunet-grasp solve`` needs neither torch nor matplotlib and ``pneunet-grasp --help`` imports none of them.
+A subcommand module provides ``add_arguments(parser)`` and ``run(args) -> int``. Commands whose name has two
+words (``bench speed``) form a group (``bench``) that answers ``--help`` with its sub-commands.
+``python -m pneunet_env.cli`` is the same as ``pneunet-grasp``.
 """
 
 from __future__ import annotations
 
 import argparse
+import difflib
 import importlib
 import sys
 
-__all__ = ["COMMANDS", "main"]
+__all__ = ["COMMANDS", "GROUPS", "main"]
+
+PROG = "pneunet-grasp"
 
 # name -> (module, one-line help)
 COMMANDS: dict[str, tuple[str, str]] = {
@@ -26,42 +31,108 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "search": ("agents.search", "tune the blind best-ramp (or rigid) schedule; --sensitivity runs the threshold study"),
 }
 
+# group -> one-line help; a group's sub-commands are the COMMANDS named "GROUP SUB"
+GROUPS: dict[str, str] = {
+    "bench": "benchmarks: the environment's speed and the equilibrium solvers' accuracy",
+}
+
+_HELP = ("-h", "--help")
+
+
+def _subcommands(group: str) -> dict[str, str]:
+    prefix = group + " "
+    return {name[len(prefix):]: help_ for name, (_, help_) in COMMANDS.items() if name.startswith(prefix)}
+
+
+def _top_level() -> list[str]:
+    """The first words of the commands, in order: ``demo``, ..., ``bench``, ..."""
+    return list(dict.fromkeys(name.split(" ", 1)[0] for name in COMMANDS))
+
+
+def _table(rows: dict[str, str]) -> list[str]:
+    width = max(len(n) for n in rows)
+    return [f"  {name:<{width}}  {help_}" for name, help_ in rows.items()]
+
 
 def _usage() -> str:
-    width = max(len(n) for n in COMMANDS)
-    lines = ["usage: pneunet-grasp COMMAND [options]", "", "commands:"]
-    lines += [f"  {name:<{width}}  {help_}" for name, (_, help_) in COMMANDS.items()]
-    lines += ["", "Run 'pneunet-grasp COMMAND --help' for a command's options."]
+    lines = [f"usage: {PROG} [-h] [-V] COMMAND [options]", "",
+             "Soft PneuNet gripper environment: demos, figures, benchmarks and agents.", "", "commands:"]
+    lines += _table({name: help_ for name, (_, help_) in COMMANDS.items()})
+    lines += ["", "options:", "  -h, --help     show this help and exit", "  -V, --version  print the version and exit",
+              "", f"Run '{PROG} COMMAND --help' for a command's options."]
     return "\n".join(lines)
 
 
+def _group_usage(group: str) -> str:
+    subs = _subcommands(group)
+    lines = [f"usage: {PROG} {group} [-h] {{{','.join(subs)}}} [options]", "", GROUPS.get(group, ""), "",
+             "sub-commands:"]
+    lines += _table(subs)
+    lines += ["", "options:", "  -h, --help  show this help and exit", "",
+              f"Run '{PROG} {group} SUB-COMMAND --help' for a sub-command's options."]
+    return "\n".join(lines)
+
+
+def _did_you_mean(word: str, choices) -> str:
+    close = difflib.get_close_matches(word, list(choices), n=1)
+    return f"; did you mean {close[0]!r}?" if close else f" (choose from {', '.join(choices)})"
+
+
+def _error(message: str, usage: str) -> int:
+    """argparse's way: the usage line, the error, a pointer to the full help; exit status 2."""
+    first = usage.splitlines()[0]
+    help_cmd = first.removeprefix("usage: ").split(" [-h]")[0]
+    print(f"{first}\n{PROG}: error: {message}\nRun '{help_cmd} --help' for usage.", file=sys.stderr)
+    return 2
+
+
 def main(argv: list[str] | None = None) -> int:
+    """Run ``pneunet-grasp ARGV``; return the exit status (``--help`` and argument errors raise ``SystemExit``)."""
     argv = list(sys.argv[1:] if argv is None else argv)
-    if not argv or argv[0] in ("-h", "--help"):
+    if not argv or argv[0] in _HELP:
         print(_usage())
         return 0
     if argv[0] in ("-V", "--version"):
         from pneunet_env import __version__
 
-        print(f"pneunet-grasp {__version__}")
+        print(f"{PROG} {__version__}")
         return 0
-    name = " ".join(argv[:2]) if " ".join(argv[:2]) in COMMANDS else argv[0]
-    if name not in COMMANDS:
-        print(f"pneunet-grasp: unknown command {' '.join(argv[:2])!r}\n\n{_usage()}", file=sys.stderr)
-        return 2
+    head = argv[0]
+    if head in GROUPS:
+        rest = argv[1:]
+        if not rest:
+            return _error(f"'{head}' needs a sub-command ({', '.join(_subcommands(head))})", _group_usage(head))
+        if rest[0] in _HELP:
+            print(_group_usage(head))
+            return 0
+        name = f"{head} {rest[0]}"
+        if name not in COMMANDS:
+            return _error(f"unknown {head} sub-command {rest[0]!r}{_did_you_mean(rest[0], _subcommands(head))}",
+                          _group_usage(head))
+    elif head in COMMANDS:
+        name = head
+    elif head.startswith("-"):
+        return _error(f"unknown option {head!r}", _usage())
+    else:
+        return _error(f"unknown command {head!r}{_did_you_mean(head, _top_level())}", _usage())
     module_name, help_ = COMMANDS[name]
+    args_in = argv[len(name.split()):]
     try:
         module = importlib.import_module(module_name)
     except ModuleNotFoundError as exc:
         if exc.name and module_name.startswith(exc.name):
-            print(f"pneunet-grasp: command {name!r} is not available in this version", file=sys.stderr)
+            print(f"{PROG}: command {name!r} is not available in this version", file=sys.stderr)
             return 2
-        print(f"pneunet-grasp {name}: missing dependency {exc.name!r}; install the package's extras "
-              "(see README)", file=sys.stderr)
+        missing = (f"{PROG} {name}: missing dependency {exc.name!r}; install the package's extras "
+                   "(see README)")
+        if any(a in _HELP for a in args_in):  # still answer --help, without the options it cannot list
+            print(f"usage: {PROG} {name} [options]\n\n{help_}\n\n{missing}")
+            return 0
+        print(missing, file=sys.stderr)
         return 2
-    parser = argparse.ArgumentParser(prog=f"pneunet-grasp {name}", description=help_)
+    parser = argparse.ArgumentParser(prog=f"{PROG} {name}", description=help_)
     module.add_arguments(parser)
-    args = parser.parse_args(argv[len(name.split()):])
+    args = parser.parse_args(args_in)
     return int(module.run(args) or 0)
 
 

@@ -28,6 +28,8 @@ from pathlib import Path
 
 import numpy as np
 
+from pneunet_env.cli.progress import add_progress_argument, progress
+
 DEFAULT_POLICIES = ("best-ramp", "oracle", "rigid")
 
 
@@ -45,14 +47,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--seed", type=int, default=0, help="base seed (default 0)")
     parser.add_argument("--config", default=None, help="environment config YAML (default: built-in defaults)")
     parser.add_argument("--json", type=Path, default=None, help="also write the results as JSON to this path")
-
-
-def _progress(total: int):
-    try:
-        from tqdm import tqdm
-    except ImportError:  # pragma: no cover - tqdm ships with the rl/plot extras
-        return None
-    return tqdm(total=total, desc="demo", unit="episode", leave=False)
+    add_progress_argument(parser)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -83,7 +78,7 @@ def run(args: argparse.Namespace) -> int:
     unit_mu = float(stiffness_per_modulus(np.mean(oc.object_thickness_mm), np.mean(oc.object_curvature_per_m),
                                           cfg.scales))
     t0 = time.perf_counter()
-    bar = _progress(len(entries) * args.bins * args.episodes)
+    bar = progress(total=len(entries) * args.bins * args.episodes, desc="demo", unit="episode", enabled=args.progress)
     results = []
     for entry in entries:
         env = entry.make_env(cfg)
@@ -95,11 +90,9 @@ def run(args: argparse.Namespace) -> int:
                     raise RuntimeError(f"{entry.name}: the solver failed at k~={k:g}")
                 r.update(policy=entry.name, bin=b)
                 results.append(r)
-                if bar is not None:
-                    bar.update()
+                bar.update()
         env.close()
-    if bar is not None:
-        bar.close()
+    bar.close()
     elapsed = time.perf_counter() - t0
 
     main = entries[0]

@@ -14,6 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
+from pneunet_env.cli.progress import add_progress_argument, progress
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", required=True, type=Path, help="output folder (created)")
@@ -29,6 +31,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--height", type=int, default=None, help="frame height in px (default: the config's, 360)")
     parser.add_argument("--seed", type=int, default=0, help="reset seed (default 0)")
     parser.add_argument("--sheet", type=Path, default=None, help="also copy the contact sheet to this path")
+    add_progress_argument(parser)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -50,31 +53,37 @@ def run(args: argparse.Namespace) -> int:
     frames_dir = args.out / "frames"
     frames_dir.mkdir(parents=True, exist_ok=True)
     rows = []
+    bar = progress(total=len(args.stiffness) * (args.steps + 1), desc="render", unit="frame", enabled=args.progress)
     for k in args.stiffness:
+        bar.set_description_str(f"render k~={k:.0e}")
         env = gym.make("PneuNetGrasp-v0", render_mode="rgb_array", config=args.config, **overrides)
         policy = LinearRamp(args.target, args.steps, env.unwrapped.config)
         obs, info = env.reset(seed=args.seed, options={"object_stiffness": k})
         frames = [env.render()]
+        bar.update()
         events = []
         for t in range(1, args.steps + 1):
             obs, _, terminated, truncated, info = env.step(policy(obs))
             frames.append(env.render())
+            bar.update()
             if info["damaged"] and not any(e.startswith("damaged") for e in events):
                 events.append(f"damaged at step {t}")
             if terminated or truncated:
                 break
         env.close()
+        bar.update(args.steps + 1 - len(frames))  # the steps of an episode that ended early
         for t, f in enumerate(frames):
             save_png(frames_dir / f"k{k:.0e}_{t:03d}.png", f)
         idx = np.unique(np.linspace(0, len(frames) - 1, args.columns).round().astype(int))
         row = [frames[i] for i in idx]
         row += [np.full_like(frames[0], 255)] * (args.columns - len(row))
         rows.extend(row)
-        print(
+        bar.write(
             f"k~={k:.1e}: {len(frames)} frames, final p={info['pressure_kpa']:.1f} kPa, "
             f"curvature {info['curvature_per_m']:.1f} /m, traction {info['contact_force_kpa']:.3g} kPa"
             + (f", {events[0]}" if events else "")
         )
+    bar.close()
     sheet = contact_sheet(rows, args.columns)
     path = save_png(args.out / "sheet.png", sheet)
     print(f"wrote {frames_dir}/*.png and {path}")

@@ -202,6 +202,18 @@ def _seed_words(seeds: Sequence[int] | int, n: int) -> np.ndarray:
 # ------------------------------------------------------------------------------------------------------
 
 
+_MODES = (AutoresetMode.SAME_STEP, AutoresetMode.NEXT_STEP)
+
+
+def _autoreset_mode(mode) -> AutoresetMode:
+    """``AutoresetMode.SAME_STEP`` or ``NEXT_STEP`` (the enum, its value ``"SameStep"``/``"NextStep"`` or its name)."""
+    for m in _MODES:
+        if mode is m or mode == m.value or (isinstance(mode, str) and mode.upper() == m.name):
+            return m
+    raise ValueError(f"autoreset_mode must be AutoresetMode.SAME_STEP or NEXT_STEP (or 'SameStep'/'NextStep'), "
+                     f"got {mode!r}")
+
+
 def _zero_like(a: np.ndarray):
     return None if a.dtype == object else a.dtype.type(0)
 
@@ -229,9 +241,15 @@ class PneuNetGraspVectorEnv(VectorEnv):
 
     Rewards: ``(N,)`` float64; terminations and truncations: ``(N,)`` bool.
 
-    ## Autoreset: ``AutoresetMode.SAME_STEP``
+    ## Autoreset: ``SAME_STEP`` (default) or ``NEXT_STEP``
 
-    ``metadata["autoreset_mode"]`` is ``AutoresetMode.SAME_STEP``: a sub-env whose episode ends (terminated
+    ``autoreset_mode=AutoresetMode.NEXT_STEP`` (or ``"NextStep"``) gives Gymnasium's default convention, the one
+    most user code is written for: the step that ends an episode returns that episode's last observation and info
+    (with ``is_success``), and the *next* ``step`` resets that sub-env instead of stepping it (its action is
+    ignored; reward 0, not terminated or truncated; the reset's observation and info). It equals
+    ``SyncVectorEnv(..., autoreset_mode=NEXT_STEP)`` step for step (tested).
+
+    By default ``metadata["autoreset_mode"]`` is ``AutoresetMode.SAME_STEP``: a sub-env whose episode ends (terminated
     or truncated) is reset *within the same* ``step`` call. For that sub-env, the step returns the reward,
     ``terminated`` and ``truncated`` of the step that ended the episode, but the **first observation of the
     next episode**; the last observation of the ended episode is ``info["final_obs"][i]`` and that step's
@@ -299,6 +317,7 @@ class PneuNetGraspVectorEnv(VectorEnv):
         backend: str = "auto",
         parallel: bool | None = None,
         info_level: str = "lean",
+        autoreset_mode: AutoresetMode | str = AutoresetMode.SAME_STEP,
         **overrides: Any,
     ) -> None:
         try:
@@ -327,6 +346,8 @@ class PneuNetGraspVectorEnv(VectorEnv):
         self.backend = backend
         self.parallel = parallel
         self.info_level = info_level
+        self.autoreset_mode = _autoreset_mode(autoreset_mode)
+        self.metadata = {**type(self).metadata, "autoreset_mode": self.autoreset_mode}
         self.config: EnvConfig = load_config(config, **overrides)
         self._params = task.EnvParams.from_config(self.config)
         self._contact = functools.partial(task.newton_contact_batch, backend=backend, parallel=parallel)
@@ -338,6 +359,7 @@ class PneuNetGraspVectorEnv(VectorEnv):
         self._seeded = False
         self._state: task.EnvState | None = None
         self._obs: np.ndarray | None = None
+        self._pending = np.zeros(n, bool)  # NEXT_STEP: sub-envs to reset on the next step
 
     # ---- state, for users ------------------------------------------------------------------------------
     @property
@@ -399,9 +421,11 @@ class PneuNetGraspVectorEnv(VectorEnv):
         pins = {k: (np.asarray(v)[idx] if np.ndim(v) == 1 and np.shape(v) == (n,) else v) for k, v in pins.items()}
         obj = self._draw(idx, pins)
         if mask is None:
+            self._pending = np.zeros(n, bool)
             self._state = task.reset_state(obj, self._params, self._contact)
             obs, info = self._observe(self._state), self._info(self._state, None, None)
         else:
+            self._pending = self._pending & ~mask
             self._state = task.autoreset(self._state, idx, obj, self._params, self._contact)
             obs = self._obs.copy()
             obs[idx] = self._observe(self._state)[idx]
@@ -475,6 +499,8 @@ class PneuNetGraspVectorEnv(VectorEnv):
             truncated = truncated | (state.task.step >= self.max_episode_steps)
         reward = np.asarray(res.reward, dtype=np.float64)
         obs = res.obs
+        if self.autoreset_mode is AutoresetMode.NEXT_STEP:
+            return self._step_next(res, obs, reward, terminated, truncated)
         info = self._info(state, res, None)
         self._state = state
         done = terminated | truncated
@@ -492,19 +518,47 @@ class PneuNetGraspVectorEnv(VectorEnv):
         self._state = task.autoreset(state, idx, self._draw(idx, {}), self._params, self._contact)
         obs = obs.copy()
         obs[idx] = self._observe(self._state)[idx]
-        reset_info = self._info(self._state, None, done)
-        for k, v in reset_info.items():
+        self._merge_reset_info(info, done)
+        info["final_obs"], info["_final_obs"] = final_obs, done.copy()
+        info["final_info"], info["_final_info"] = final_info, done.copy()
+        self._obs = obs.copy()
+        return obs, reward, terminated, truncated, info
+
+    def _step_next(self, res: task.Step, obs, reward, terminated, truncated):
+        """NEXT_STEP autoreset: a sub-env whose episode ended on the previous step is reset now (its action is
+        ignored): the reset's observation and info, reward 0, not terminated or truncated."""
+        pending = self._pending
+        state = res.state
+        done = (terminated | truncated) & ~pending
+        info = self._info(state, res, None)
+        if done.any():
+            info["is_success"] = done & np.asarray(res.outcome.success, dtype=bool)
+            info["_is_success"] = done.copy()
+        if pending.any():
+            idx = np.flatnonzero(pending)
+            state = task.autoreset(state, idx, self._draw(idx, {}), self._params, self._contact)
+            obs = obs.copy()
+            obs[idx] = self._observe(state)[idx]
+            reward = np.where(pending, 0.0, reward)
+            terminated, truncated = terminated & ~pending, truncated & ~pending
+            self._state = state
+            self._merge_reset_info(info, pending)
+        self._state = state
+        self._pending = done
+        self._obs = obs.copy()
+        return obs, reward, terminated, truncated, info
+
+    def _merge_reset_info(self, info: dict[str, Any], reset: np.ndarray) -> None:
+        """Put the reset info of the sub-envs ``reset`` (already reset in ``self._state``) into ``info``."""
+        idx = np.flatnonzero(reset)
+        for k, v in self._info(self._state, None, reset).items():
             if k[0] == "_":
                 continue
             if k in info:
                 info[k][idx] = v[idx]
             else:  # a key only a reset info has (the object's constants, at the lean level)
-                info[k] = np.where(done, v, _zero_like(v))
-                info["_" + k] = done.copy()
-        info["final_obs"], info["_final_obs"] = final_obs, done.copy()
-        info["final_info"], info["_final_info"] = final_info, done.copy()
-        self._obs = obs.copy()
-        return obs, reward, terminated, truncated, info
+                info[k] = np.where(reset, v, _zero_like(v))
+                info["_" + k] = reset.copy()
 
     # ---- rendering ----------------------------------------------------------------------------------------
     def render_state(self, i: int):

@@ -11,6 +11,7 @@ import argparse
 import sys
 from pathlib import Path
 
+from pneunet_env.cli.progress import add_progress_argument, progress_enabled
 from pneunet_env.paper import checks as paper_checks
 from pneunet_env.paper.figures import FIGURES, generate, load_tables
 
@@ -25,7 +26,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-csv", action="store_true", help="write only the PNGs (and print the checks)")
     parser.add_argument("--table-only", action="store_true",
                         help="compute nothing: read the CSVs already in --out and print the checks' markdown table")
-    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
+    add_progress_argument(parser)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -35,7 +36,7 @@ def run(args: argparse.Namespace) -> int:
         print(paper_checks.render_markdown(paper_checks.run_checks(tables)))
         return 0
     report = generate(out, quick=args.quick, names=args.only, csv_files=not args.no_csv,
-                      show_progress=not args.no_progress)
+                      show_progress=progress_enabled(args.progress))  # off unless stderr is a terminal
     for p in report.files:
         print(f"wrote {p}")
     print(f"{report.states} equilibria in {report.seconds:.1f} s; "

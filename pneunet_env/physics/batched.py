@@ -24,7 +24,9 @@ from __future__ import annotations
 
 import hashlib
 import math
+import os
 import sys
+import threading
 from pathlib import Path
 from typing import NamedTuple
 
@@ -47,6 +49,7 @@ from pneunet_env.physics.solver import (
     MIN_STEP_LENGTH,
     PREDICTED_JUMP_FRACTION,
     SHRINK,
+    STATUS_BUDGET,
     STATUS_CONVERGED,
     STATUS_INACTIVE,
     STATUS_LINE_SEARCH,
@@ -243,6 +246,8 @@ def _allocate(k, s) -> _Raw:
 # --------------------------------------------------------------------------------------------------
 # Compiled back-end: a loop over envs around the compiled scalar continuation.
 
+_PARALLEL_LOCK = threading.Lock()
+
 PARALLEL_MIN_ENVS = 256
 """Below this many envs the serial compiled loop is used (thread start-up costs more than it saves)."""
 
@@ -285,6 +290,12 @@ def _make_loop(stamp: int, variant: int):
 if HAVE_NUMBA:
     import numba
 
+    if "NUMBA_THREADING_LAYER" not in os.environ and numba.config.THREADING_LAYER == "default":
+        # GNU OpenMP (numba's usual pick) kills any child forked after a parallel loop ran: Gymnasium's
+        # AsyncVectorEnv and multiprocessing pools fork by default on Linux. "forksafe" picks tbb if installed,
+        # else the built-in workqueue, which is not thread-safe: _PARALLEL_LOCK serialises the parallel calls.
+        numba.config.THREADING_LAYER = "forksafe"
+
     _stamp = _source_stamp()
     # Cached on disk (compiling the parallel loop takes seconds); the scalar solver's closures are not
     # cacheable (numba keys them by their pickled closure, which differs in every process).
@@ -305,9 +316,13 @@ def solve_batch_numba(k, s, p0, p1, kobj, ko, prm, opts, active, parallel: bool 
     out = _allocate(k, s)
     if parallel is None:
         parallel = k.shape[0] >= PARALLEL_MIN_ENVS
-    loop = _loop_parallel if parallel else _loop_serial
-    loop(k, s, p0, p1, kobj, ko, prm, opts, active, out.kappa, out.side_strain, out.energy, out.gradient_norm,
-         out.min_eigenvalue, out.iterations, out.substeps, out.snapped, out.status, out.volume_change)
+    args = (k, s, p0, p1, kobj, ko, prm, opts, active, out.kappa, out.side_strain, out.energy, out.gradient_norm,
+            out.min_eigenvalue, out.iterations, out.substeps, out.snapped, out.status, out.volume_change)
+    if parallel:
+        with _PARALLEL_LOCK:  # one parallel loop at a time (the workqueue layer aborts on concurrent use)
+            _loop_parallel(*args)
+    else:
+        _loop_serial(*args)
     return _result(out, p1, kobj, ko, prm[0])
 
 
@@ -347,7 +362,7 @@ class _Machine:
               "p", "pt", "h", "sign",
               # Pending evaluation point.
               "xk", "xs", "xp")
-    _INT = ("pos", "mode", "it", "maxit", "dstatus", "bstatus", "iters", "substeps")
+    _INT = ("pos", "mode", "it", "maxit", "dstatus", "bstatus", "iters", "substeps", "attempts")
     _BOOL = ("ok", "bok", "snapped")
 
     def __init__(self, n: int):
@@ -364,7 +379,7 @@ def solve_batch_numpy(k, s, p0, p1, kobj, ko, prm, opts, active) -> Equilibrium:
 
     ``prm`` is :func:`pneunet_env.physics.solver.params_tuple`, ``opts`` :meth:`SolverOptions.as_tuple`.
     """
-    gtol, max_iter, corr_iter, max_step, min_step, max_jump, eig_floor = opts
+    gtol, max_iter, corr_iter, max_step, min_step, max_jump, eig_floor, max_substeps = opts
     n = k.shape[0]
     out = _allocate(k, s)
     m = _Machine(n)
@@ -391,7 +406,7 @@ def solve_batch_numpy(k, s, p0, p1, kobj, ko, prm, opts, active) -> Equilibrium:
             while True:
                 moved = _descend_check(m, gtol, eig_floor)
                 moved |= _descend_end(m, p1, max_iter, min_step, max_step, max_jump)
-                moved |= _follow_loop(m, p1, corr_iter, min_step, max_jump)
+                moved |= _follow_loop(m, p1, corr_iter, min_step, max_jump, max_substeps)
                 if not moved:
                     break
 
@@ -580,13 +595,18 @@ def _accept(m: _Machine, i: np.ndarray) -> None:
     m.bvk[i], m.bvs[i], m.bdv[i] = m.vk[i], m.vs[i], m.dv[i]
 
 
-def _follow_loop(m: _Machine, p1, corr_iter, min_step, max_jump) -> bool:
+def _follow_loop(m: _Machine, p1, corr_iter, min_step, max_jump, max_substeps) -> bool:
     i = np.flatnonzero(m.pos == _F_LOOP)
     if i.size == 0:
         return False
     done = (m.p[i] == p1[i]) | (m.bstatus[i] > STATUS_ROUNDOFF)
     m.pos[i[done]] = _DONE
     i = i[~done]
+    spent = m.attempts[i] >= max_substeps  # the sub-step budget (see solver.follow_ev)
+    m.bstatus[i[spent]] = STATUS_BUDGET
+    m.pos[i[spent]] = _DONE
+    i = i[~spent]
+    m.attempts[i] += 1
     if i.size == 0:
         return True
     hkk, hks, hss, vk, vs = m.bhkk[i], m.bhks[i], m.bhss[i], m.bvk[i], m.bvs[i]

@@ -20,6 +20,8 @@ def check_finite(name: str, value: float) -> float:
         x = float(value)
     except (TypeError, ValueError):
         raise ValueError(f"{name} must be a real number, got {value!r}") from None
+    except OverflowError:
+        raise ValueError(f"{name} must be finite, got {value!r} (too large for a float)") from None
     if not math.isfinite(x):
         raise ValueError(f"{name} must be finite, got {value!r}")
     return x

@@ -89,6 +89,7 @@ STATUS_MAX_ITER = 2
 STATUS_LINE_SEARCH = 3
 STATUS_STALLED = 4
 STATUS_OUTSIDE = 5
+STATUS_BUDGET = 6
 STATUS_MESSAGES = {
     STATUS_INACTIVE: "not solved (inactive)",
     STATUS_CONVERGED: "converged",
@@ -97,6 +98,7 @@ STATUS_MESSAGES = {
     STATUS_LINE_SEARCH: "line search failed",
     STATUS_STALLED: "stalled",
     STATUS_OUTSIDE: "start point outside the domain",
+    STATUS_BUDGET: "sub-step budget spent (max_substeps)",
 }
 """What each ``status`` code means; ``status <= STATUS_ROUNDOFF`` (and ``>= 0``) is converged. ``-1``: an env of a
 batch that was not solved (masked out)."""
@@ -110,14 +112,28 @@ def status_message(status):
     return STATUS_MESSAGES[int(status)]
 
 
-MAX_ITERATIONS = 100_000
-"""Upper bound of ``SolverOptions.max_iter`` and ``corrector_max_iter`` (a compiled int64 loop counter; a descent that
-needs more than this has failed anyway)."""
+OPTION_BOUNDS: dict[str, tuple[float, float, str]] = {
+    "gtol": (1e-16, ACCEPT_GTOL, "below 1e-16 no double-precision gradient can be resolved; above ACCEPT_GTOL a "
+             "'converged' state would not have a zero gradient"),
+    "max_iter": (1, 100_000, "a compiled int64 counter; a descent that needs more has failed anyway"),
+    "corrector_max_iter": (1, 1_000, "a corrector that needs more than this is off its branch"),
+    "max_step": (1e-6, 1.0, "the env's whole pressure range is p~ = 1.2; a sub-step under 1e-6 (0.05 Pa) measures "
+                 "nothing"),
+    "min_step": (1e-12, 1.0, "a fold located to better than 1e-12 in p~ (5e-8 Pa) is below round-off of the state"),
+    "max_jump": (1e-5, 1.0, "the state (kappa~, e_s) is of order 0.01-1; smaller branch steps only cost sub-steps"),
+    "eig_floor": (1e-16, 1e-2, "a relative floor on |lambda|: at most a percent, at least round-off"),
+    "max_substeps": (1, 1_000_000, "the budget of sub-step attempts of one call: a call that spends it is flagged "
+                     "unconverged, never hangs"),
+}
+"""``(low, high, why)`` of every :class:`SolverOptions` field: the bounds the physics and the arithmetic justify."""
+MAX_ITERATIONS = int(OPTION_BOUNDS["max_iter"][1])
+
+_INT_OPTIONS = ("max_iter", "corrector_max_iter", "max_substeps")
 
 
 @dataclass(frozen=True)
 class SolverOptions:
-    """Tolerances of the minimiser (dimensionless).
+    """Tolerances of the minimiser (dimensionless); each within :data:`OPTION_BOUNDS`.
 
     Attributes:
         gtol: Stop once ``|grad|_2 <= gtol`` and the Hessian is positive definite. (A state that stalls
@@ -129,6 +145,8 @@ class SolverOptions:
         min_step: Smallest pressure sub-step; a branch that cannot be followed over it has ended (fold).
         max_jump: Largest state change ``max(|d kappa~|, |d e_s|)`` over one sub-step on the same branch.
         eig_floor: Relative floor on the modified Hessian's eigenvalues.
+        max_substeps: Sub-step attempts (accepted, shrunk or a fold) allowed in one call; when they are spent the
+            call stops with status :data:`STATUS_BUDGET` (not converged). The env's steps take at most about 50.
     """
 
     gtol: float = 1e-11
@@ -138,27 +156,33 @@ class SolverOptions:
     min_step: float = 1e-9
     max_jump: float = 0.02
     eig_floor: float = 1e-10
+    max_substeps: int = 10_000
 
     def __post_init__(self) -> None:
-        for name in ("gtol", "max_step", "min_step", "max_jump", "eig_floor"):
-            v = check_finite(name, getattr(self, name))
-            if v <= 0.0:
-                raise ValueError(f"SolverOptions.{name} must be > 0, got {v!r}")
-        for name in ("max_iter", "corrector_max_iter"):
+        for name, (lo, hi, why) in OPTION_BOUNDS.items():
             v = getattr(self, name)
-            try:
-                i = int(v)
-            except (TypeError, ValueError, OverflowError):
-                raise ValueError(f"SolverOptions.{name} must be an integer, got {v!r}") from None
-            if isinstance(v, bool) or i != v:
-                raise ValueError(f"SolverOptions.{name} must be an integer, got {v!r}")
-            if not 1 <= i <= MAX_ITERATIONS:
-                raise ValueError(f"SolverOptions.{name} must be in [1, {MAX_ITERATIONS}], got {v!r}")
-            object.__setattr__(self, name, i)
+            if name in _INT_OPTIONS:
+                try:
+                    i = int(v)
+                except (TypeError, ValueError, OverflowError):
+                    raise ValueError(f"SolverOptions.{name} must be an integer, got {v!r}") from None
+                if isinstance(v, (bool, str, bytes)) or i != v:
+                    raise ValueError(f"SolverOptions.{name} must be an integer, got {v!r}")
+                v = i
+            else:
+                if isinstance(v, (bool, str, bytes)):
+                    raise ValueError(f"SolverOptions.{name} must be a number, got {v!r}")
+                v = check_finite(f"SolverOptions.{name}", v)
+            if not lo <= v <= hi:
+                raise ValueError(
+                    f"SolverOptions.{name} must be in [{lo:g}, {hi:g}] ({why}), got {getattr(self, name)!r}"
+                )
+            object.__setattr__(self, name, v)
         if self.min_step > self.max_step:
             raise ValueError(f"SolverOptions.min_step={self.min_step!r} exceeds max_step={self.max_step!r}")
 
     def as_tuple(self) -> tuple:
+        """The fields in order, as the compiled solver takes them."""
         return (
             float(self.gtol),
             int(self.max_iter),
@@ -167,6 +191,7 @@ class SolverOptions:
             float(self.min_step),
             float(self.max_jump),
             float(self.eig_floor),
+            int(self.max_substeps),
         )
 
 
@@ -312,7 +337,7 @@ def _make_parts(terms, jit=njit):
 
     @jit
     def follow_ev(k, s, p0, p1, prm, kobj, ko, opts):
-        gtol, max_iter, corr_iter, max_step, min_step, max_jump, eig_floor = opts
+        gtol, max_iter, corr_iter, max_step, min_step, max_jump, eig_floor, max_substeps = opts
         # Polish the start so that the tangent is taken at an equilibrium (at an equilibrium: one evaluation).
         k, s, U, gn, lmin, iters, status, ev = descend(
             k, s, p0, prm, kobj, ko, gtol, max_iter, eig_floor, evaluate(k, s, p0, prm, kobj, ko), k, s, math.inf
@@ -322,7 +347,12 @@ def _make_parts(terms, jit=njit):
         p = p0
         h = min(abs(p1 - p0), max_step)
         sign = 1.0 if p1 >= p0 else -1.0
+        attempts = 0
         while p != p1 and status <= STATUS_ROUNDOFF:
+            if attempts >= max_substeps:
+                status = STATUS_BUDGET  # never hang: a call that spends its budget is flagged unconverged
+                break
+            attempts += 1
             # Tangent dx/dp = H^{-1} dV/dx at the current equilibrium, where the Hessian is positive definite.
             hkk, hks, hss, vk, vs = ev[4], ev[5], ev[6], ev[8], ev[9]
             det = hkk * hss - hks * hks

@@ -78,6 +78,14 @@ def object_modulus_from_stiffness(
     return k / unit
 
 
+_PHYSICAL_NAMES = {
+    "chamber_height": "chamber_height_mm", "base_thickness": "base_thickness_mm", "side_thickness": "side_thickness_mm",
+    "top_thickness": "top_thickness_mm", "base_modulus": "base_modulus_kpa", "poisson_ratio": "poisson_ratio",
+    "gent_limit": "gent_limit",
+}
+"""The physical key of each :class:`ActuatorParams` field (for error messages)."""
+
+
 @dataclass(frozen=True)
 class PhysicalActuator:
     """The actuator in physical units (supplement Table 1 defaults): lengths in mm, moduli in kPa."""
@@ -94,10 +102,16 @@ class PhysicalActuator:
     gent_limit: float = 20.0
 
     def __post_init__(self) -> None:
-        for name in ("width_mm", "chamber_height_mm", "depth_mm", "shear_modulus_kpa"):
+        for name in ("width_mm", "chamber_height_mm", "depth_mm", "base_thickness_mm", "side_thickness_mm",
+                     "top_thickness_mm", "shear_modulus_kpa", "base_modulus_kpa", "gent_limit"):
             check_positive(name, getattr(self, name))
-        for name in ("base_thickness_mm", "side_thickness_mm", "top_thickness_mm", "base_modulus_kpa"):
-            check_finite(name, getattr(self, name))
+        check_finite("poisson_ratio", self.poisson_ratio)
+        try:  # the geometry must leave a cavity: ActuatorParams says why, named here by the physical keys
+            self.to_dimensionless()
+        except ValueError as exc:
+            msg = str(exc)
+            named = [phys for dim, phys in _PHYSICAL_NAMES.items() if dim in msg.split(" (")[0] or dim + " " in msg]
+            raise ValueError(f"{', '.join(named) or 'actuator'}: {msg}") from None
 
     @property
     def scales(self) -> Scales:

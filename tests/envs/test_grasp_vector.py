@@ -95,15 +95,19 @@ def test_vector_env_equals_n_single_envs_with_auto_resets(backend):
     assert ends >= 3 * n and terminations >= 5  # the run did exercise ends, resets and terminations
 
 
+@pytest.mark.parametrize("mode", [AutoresetMode.SAME_STEP, AutoresetMode.NEXT_STEP])
 @pytest.mark.parametrize("backend", BACKENDS)
-def test_vector_env_is_the_sync_vector_env_of_single_envs(backend):
-    """Step for step, Gymnasium's SyncVectorEnv(SAME_STEP) of single envs, every key of the vector info included."""
+def test_vector_env_is_the_sync_vector_env_of_single_envs(backend, mode):
+    """Step for step, Gymnasium's SyncVectorEnv of single envs in the same autoreset mode, every key of the vector
+    info included, through many episode ends."""
     n, steps = 5, 120
     kw = dict(VARIED, max_episode_steps=16)
     ref = gym.make_vec("PneuNetGrasp-v0", num_envs=n, vectorization_mode="sync",
-                       vector_kwargs={"autoreset_mode": AutoresetMode.SAME_STEP}, **kw)
-    vec = gym.make_vec("PneuNetGrasp-v0", num_envs=n, backend=backend, **kw)
+                       vector_kwargs={"autoreset_mode": mode}, **kw)
+    extra = {} if mode is AutoresetMode.SAME_STEP else {"autoreset_mode": mode}
+    vec = gym.make_vec("PneuNetGrasp-v0", num_envs=n, backend=backend, **kw, **extra)
     assert isinstance(vec.unwrapped, PneuNetGraspVectorEnv)
+    assert vec.metadata["autoreset_mode"] is mode
     actions = np.random.default_rng(1).uniform(-1.3, 1.3, (steps, n, 1)).astype(np.float32)
     _assert_same(ref.reset(seed=3), vec.reset(seed=3), "reset")
     for t in range(steps):
@@ -411,3 +415,11 @@ class _Fixed:
 
     def random(self, shape):
         return self.u.reshape(shape)
+
+
+def test_autoreset_mode_is_checked_and_named():
+    assert PneuNetGraspVectorEnv(2, autoreset_mode="NextStep").autoreset_mode is AutoresetMode.NEXT_STEP
+    assert PneuNetGraspVectorEnv(2, autoreset_mode="next_step").metadata["autoreset_mode"] is AutoresetMode.NEXT_STEP
+    assert PneuNetGraspVectorEnv.metadata["autoreset_mode"] is AutoresetMode.SAME_STEP  # the class default is kept
+    with pytest.raises(ValueError, match="autoreset_mode"):
+        PneuNetGraspVectorEnv(2, autoreset_mode=AutoresetMode.DISABLED)

@@ -246,3 +246,38 @@ def test_bad_input_raises_naming_it(kwargs, name):
     args.update(kwargs)
     with pytest.raises(ValueError, match=name):
         B.solve_batch(**args)
+
+
+_FORK_AFTER_PARALLEL = """
+import os, sys, threading, numpy as np
+from pneunet_env.physics import batched
+n = 2048
+args = (np.zeros(n), np.zeros(n), 0.0, np.linspace(0.0, 1.2, n), 1e-3)
+r = batched.solve_batch(*args, parallel=True, backend="numba")
+# two threads at once: the parallel loop is serialised, never aborted
+out = []
+ts = [threading.Thread(target=lambda: out.append(batched.solve_batch(*args, parallel=True, backend="numba")))
+      for _ in range(2)]
+[t.start() for t in ts]; [t.join() for t in ts]
+assert len(out) == 2 and all(np.array_equal(o.curvature, r.curvature) for o in out)
+pid = os.fork()
+if pid == 0:
+    r2 = batched.solve_batch(*args, parallel=True, backend="numba")
+    os._exit(0 if np.array_equal(r.curvature, r2.curvature) else 3)
+_, status = os.waitpid(pid, 0)
+sys.exit(os.waitstatus_to_exitcode(status))
+"""
+
+
+@pytest.mark.skipif(not HAVE_NUMBA, reason="needs numba")
+def test_fork_after_the_parallel_loop_survives():
+    """AsyncVectorEnv and multiprocessing fork on Linux: a child forked after a parallel solve must live (GNU OpenMP
+    kills it), and two threads solving at once must not abort."""
+    import os
+    import subprocess
+    import sys
+
+    env = {k: v for k, v in os.environ.items() if k != "NUMBA_THREADING_LAYER"}
+    res = subprocess.run([sys.executable, "-c", _FORK_AFTER_PARALLEL], capture_output=True, text=True, timeout=300,
+                         env=env)
+    assert res.returncode == 0, res.stderr[-2000:]

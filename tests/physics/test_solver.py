@@ -190,3 +190,44 @@ def test_round_off_floor_beyond_double_precision_is_reported_not_hidden():
     if not eq.converged:
         assert eq.message != "converged"
     assert abs(eq.curvature - 2.0**-7) < 1e-9  # pinned at the kink of contact onset, as it should be
+
+
+# ---- options that could hang, and the sub-step budget ----------------------------------------------------------
+
+
+@pytest.mark.parametrize(("field", "value"), [
+    ("max_jump", 1e-15), ("max_step", 1e-12), ("min_step", 1e-15), ("gtol", 1e-9), ("gtol", 0.0),
+    ("max_iter", 1.5), ("max_iter", 1e300), ("max_iter", True), ("corrector_max_iter", 0), ("eig_floor", 0.5),
+    ("max_substeps", 0), ("max_substeps", 10**9), ("max_jump", float("nan")), ("max_step", "0.1"),
+])
+def test_options_out_of_their_bounds_raise_naming_the_field(field, value):
+    from pneunet_env.physics.solver import SolverOptions
+
+    with pytest.raises(ValueError, match=field):
+        SolverOptions(**{field: value})
+
+
+def test_a_spent_substep_budget_is_flagged_never_hangs():
+    import time
+
+    from pneunet_env.physics import batched
+    from pneunet_env.physics.solver import STATUS_BUDGET, SolverOptions
+
+    opts = SolverOptions(max_jump=1e-5, max_step=1e-6, min_step=1e-12, max_substeps=50)
+    t0 = time.perf_counter()
+    eq = solve_equilibrium(0.6, 1e-4, 0.02, options=opts)
+    assert time.perf_counter() - t0 < 10.0
+    assert not eq.converged and eq.status == STATUS_BUDGET and "budget" in eq.message
+    assert np.isfinite(eq.curvature) and np.isfinite(eq.energy)
+    backends = ["numpy"] + (["numba"] if batched.HAVE_NUMBA else [])
+    for backend in backends:  # the masked array form counts the same attempts and stops at the same place
+        r = batched.solve_batch([0.0, 0.0], [0.0, 0.0], 0.0, [0.6, 1e-6], 1e-4, 0.02, options=opts, backend=backend)
+        assert list(r.status) == [STATUS_BUDGET, 0] and list(r.converged) == [False, True], backend
+        assert r.curvature[0] == pytest.approx(eq.curvature, abs=1e-12) and r.substeps[0] == eq.substeps
+
+
+def test_the_default_budget_is_far_above_what_env_steps_take():
+    from pneunet_env.physics.solver import DEFAULT_OPTIONS
+
+    path = load_path(np.linspace(0.0, 1.2, 21), 1e-4)  # env-sized steps, through the fold
+    assert path.converged.all() and max(e.substeps for e in path.equilibria) * 100 < DEFAULT_OPTIONS.max_substeps
