@@ -55,7 +55,7 @@ import numpy as np
 from pneunet_env.config import LOG_UNIFORM_FIELDS, RANGE_FIELDS, EnvConfig
 from pneunet_env.objects import GraspObject
 from pneunet_env.physics.batched import solve_batch
-from pneunet_env.physics.contact import winkler_stiffness
+from pneunet_env.physics.contact import CONVERGED_CONTACT_RATIO, contact_ratio, winkler_stiffness
 from pneunet_env.physics.solver import (
     Equilibrium,
     equilibrium,
@@ -91,6 +91,7 @@ __all__ = [
     "newton_contact_batch",
     "free_volume_change",
     "reset_state",
+    "warn_if_beyond_convergence",
     "step",
     "merge",
     "autoreset",
@@ -665,6 +666,24 @@ class Step(NamedTuple):
     outcome: Outcome
     action_clipped: Any
     solver_failed: Any
+
+
+def warn_if_beyond_convergence(obj: GraspObject, warned: bool = False) -> bool:
+    """Warn (once: pass and keep the returned flag) if an object's contact is stiffer than any at which the solver
+    was measured to converge (:data:`pneunet_env.physics.contact.CONVERGED_CONTACT_RATIO`). Returns the flag."""
+    if warned:
+        return True
+    ratio = np.max(contact_ratio(np.asarray(obj.stiffness), np.asarray(obj.curvature)))
+    if ratio > CONVERGED_CONTACT_RATIO:
+        import warnings
+
+        warnings.warn(
+            f"object with k~/(w kappa_obj)^4 = {ratio:.3g} beyond {CONVERGED_CONTACT_RATIO:g}, the largest at which "
+            "the solver was measured to converge: steps may be flagged unconverged (info['solver_failed'])",
+            UserWarning, stacklevel=3,
+        )
+        return True
+    return False
 
 
 def reset_state(obj: GraspObject, params: EnvParams, contact: Contact) -> EnvState:

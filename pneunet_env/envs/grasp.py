@@ -147,6 +147,7 @@ class PneuNetGraspEnv(gym.Env):
         self.observation_space = observation_space(self.config)
         self._state: task.EnvState | None = None
         self._ended = False
+        self._warned = False
         self._static_info: dict[str, Any] | None = None
         self._viewer = None
 
@@ -169,6 +170,7 @@ class PneuNetGraspEnv(gym.Env):
             raise ValueError(f"options must be a dict of object properties to pin, got {options!r}")
         obj = task.sample_object(self.np_random, self.config, pinned=options)
         check_object(obj.stiffness, obj.curvature)
+        self._warned = task.warn_if_beyond_convergence(obj, self._warned)
         self._state = state = task.reset_state(obj, self._params, task.newton_contact)
         self._static_info = task.object_info(obj, state.thresholds, self._params.task)
         obs = task.observation(state.command, state.eq.volume_change, self._params.task, self._params.volume_scale)

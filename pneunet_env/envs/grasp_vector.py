@@ -360,6 +360,7 @@ class PneuNetGraspVectorEnv(VectorEnv):
         self._state: task.EnvState | None = None
         self._obs: np.ndarray | None = None
         self._pending = np.zeros(n, bool)  # NEXT_STEP: sub-envs to reset on the next step
+        self._warned = False
 
     # ---- state, for users ------------------------------------------------------------------------------
     @property
@@ -437,7 +438,9 @@ class PneuNetGraspVectorEnv(VectorEnv):
     def _draw(self, idx: np.ndarray, pins: dict[str, Any]) -> GraspObject:
         """Objects for sub-envs ``idx``, from each one's own stream (the vector env's only source of randomness)."""
         u = self._streams.random(idx, len(RANGE_FIELDS))
-        return task.object_from_uniforms(u, self.config, pinned=pins, batch=True)
+        obj = task.object_from_uniforms(u, self.config, pinned=pins, batch=True)
+        self._warned = task.warn_if_beyond_convergence(obj, self._warned)
+        return obj
 
     def _observe(self, state: task.EnvState) -> np.ndarray:
         return task.observation(state.command, state.eq.volume_change, self._params.task, self._params.volume_scale)

@@ -21,7 +21,21 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["make_contact", "indentation", "contact", "scalar_indentation", "scalar_contact", "winkler_stiffness"]
+__all__ = ["make_contact", "indentation", "contact", "scalar_indentation", "scalar_contact", "winkler_stiffness",
+           "CONVERGED_CONTACT_RATIO", "contact_ratio"]
+
+CONVERGED_CONTACT_RATIO = 2e6
+"""The largest contact stiffness ratio ``k~ / (w kappa_obj)^4`` at which every solve was measured to converge
+(``|grad| <= 1e-10``, positive-definite Hessian): loading to ``p~ = 1.2`` and unloading in env-sized steps, at
+``w kappa_obj`` = 0.02, 0.1, 0.25, 0.5 and 1 (``tests/physics/test_solver.py`` re-checks it). Past it the contact's
+Hessian ``k~/kappa_obj^4`` times the spacing of doubles near ``kappa_obj`` exceeds the gradient tolerance at some
+curvatures (first at 3e6, for ``w kappa_obj = 0.5``): the solver then reports ``converged=False`` honestly, and the
+environments warn when they draw such an object."""
+
+
+def contact_ratio(object_stiffness, object_curvature):
+    """``k~ / (w kappa_obj)^4``, the contact stiffness over the bending scale (:data:`CONVERGED_CONTACT_RATIO`)."""
+    return object_stiffness / object_curvature**4
 
 
 def _identity(fn):

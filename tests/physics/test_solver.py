@@ -231,3 +231,27 @@ def test_the_default_budget_is_far_above_what_env_steps_take():
 
     path = load_path(np.linspace(0.0, 1.2, 21), 1e-4)  # env-sized steps, through the fold
     assert path.converged.all() and max(e.substeps for e in path.equilibria) * 100 < DEFAULT_OPTIONS.max_substeps
+
+
+@pytest.mark.parametrize("c", [0.02, 0.1, 0.25, 0.5, 1.0])
+def test_solves_converge_up_to_the_measured_contact_ratio(c):
+    """The bound the envs warn above (contact.CONVERGED_CONTACT_RATIO): loading and unloading in env-sized steps."""
+    from pneunet_env.physics.contact import CONVERGED_CONTACT_RATIO
+
+    k = CONVERGED_CONTACT_RATIO * c**4
+    ps = np.r_[np.linspace(0.0, 1.2, 21), np.linspace(1.2, 0.0, 21)]
+    path = load_path(ps, k, c)
+    assert path.converged.all()
+    for eq in path.equilibria:
+        assert eq.gradient_norm <= ACCEPT_GTOL and eq.min_eigenvalue > 0.0
+
+
+def test_the_envs_warn_beyond_the_measured_contact_ratio():
+    import gymnasium as gym
+
+    env = gym.make("PneuNetGrasp-v0")
+    with pytest.warns(UserWarning, match="measured to converge"):
+        env.reset(seed=0, options={"object_stiffness": 10.0})  # 10 / 0.02^4 = 6e7
+    vec = gym.make_vec("PneuNetGrasp-v0", num_envs=2)
+    with pytest.warns(UserWarning, match="measured to converge"):
+        vec.reset(seed=0, options={"object_stiffness": np.array([1e-3, 10.0])})

@@ -1,0 +1,318 @@
+"""The real-object catalogue: hand-scale objects of real material classes, read from ``data/objects.yaml``.
+
+Each class gives literature ranges ``(low, high)`` for the properties eq. 3.2 and the damage/slip thresholds
+need (Young's modulus ``E``, from which ``shear_modulus_kpa = E/3`` for an incompressible solid; density;
+failure strain and stress; outer radius ``R = 1/kappa_obj``; compliant depth ``H``), whether the class lies
+inside eq. 3.2's incompressible-annulus model (with the reason), and its sources. Use cases weight the classes
+(the default one is the file's ``use_cases.default``). The criterion and the default use case are stated in
+``docs/env.md``, section "Object catalogue".
+
+* :func:`load_catalogue` reads and validates the packaged file (or another path) into
+  ``{name: ObjectClass}``; any malformed class raises ``ValueError`` naming the class and the field.
+* :func:`use_case_weights` returns a use case's class weights, normalized to sum 1.
+* :func:`stiffness_range` gives the dimensionless ``k~ = k_obj w/mu`` range of a class (eq. 3.2 over the
+  corners of its modulus, radius and thickness box).
+
+The YAML is package data (``pneunet_env/data/objects.yaml``), read with :mod:`importlib.resources`, so this works
+from an installed wheel as long as the wheel ships it.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from pneunet_env.physics.contact import winkler_stiffness
+
+__all__ = [
+    "ObjectClass",
+    "UseCase",
+    "load_catalogue",
+    "load_use_cases",
+    "default_use_case",
+    "use_case_weights",
+    "stiffness_range",
+    "RANGE_FIELDS",
+]
+
+_PACKAGE = "pneunet_env.data"
+_FILENAME = "objects.yaml"
+
+RANGE_FIELDS = (
+    "youngs_modulus_kpa",
+    "density_kg_m3",
+    "failure_strain",
+    "failure_stress_kpa",
+    "radius_mm",
+    "thickness_mm",
+)
+"""The ``[low, high]`` fields every class must give in the YAML (all positive, ``low <= high``)."""
+
+_REQUIRED = ("description", *RANGE_FIELDS, "in_annulus_model", "reason", "sources")
+
+Range = tuple[float, float]
+
+
+@dataclass(frozen=True)
+class ObjectClass:
+    """One material class of the catalogue. Ranges are ``(low, high)`` in the units of their names.
+
+    ``shear_modulus_kpa`` is derived, ``E/3`` (incompressible solid); for classes outside the annulus model
+    (foams, sponges) that is only the incompressible approximation.
+    """
+
+    name: str
+    description: str
+    youngs_modulus_kpa: Range
+    shear_modulus_kpa: Range
+    density_kg_m3: Range
+    failure_strain: Range
+    failure_stress_kpa: Range
+    radius_mm: Range
+    thickness_mm: Range
+    in_annulus_model: bool
+    reason: str
+    sources: tuple[str, ...]
+
+    @property
+    def curvature_per_m(self) -> Range:
+        """The outer curvature ``kappa_obj = 1/R`` range (1/m), ``(1/R_hi, 1/R_lo)``."""
+        return (1e3 / self.radius_mm[1], 1e3 / self.radius_mm[0])
+
+
+@dataclass(frozen=True)
+class UseCase:
+    """A use case: relative class weights (only classes inside the annulus model) and the classes of the scene
+    that fall outside the model (``unreachable``, reported as their own category, never drawn)."""
+
+    name: str
+    description: str
+    reason: str
+    weights: dict[str, float]
+    unreachable: tuple[str, ...]
+
+
+# ---------------------------------------------------------------------------------------------
+# Reading
+# ---------------------------------------------------------------------------------------------
+
+
+def _read_text(path: str | Path | None) -> tuple[str, str]:
+    """``(text, label)`` of the catalogue file: ``path`` if given, else the packaged ``objects.yaml``."""
+    if path is None:
+        res = resources.files(_PACKAGE).joinpath(_FILENAME)
+        return res.read_text(encoding="utf-8"), f"{_PACKAGE}/{_FILENAME}"
+    p = Path(path)
+    return p.read_text(encoding="utf-8"), str(p)
+
+
+def _load_raw(path: str | Path | None) -> tuple[dict[str, Any], str]:
+    text, label = _read_text(path)
+    try:
+        raw = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise ValueError(f"{label}: not valid YAML ({exc})") from None
+    if not isinstance(raw, dict):
+        raise ValueError(f"{label}: the top level must be a mapping with 'classes' and 'use_cases'")
+    return raw, label
+
+
+# ---------------------------------------------------------------------------------------------
+# Validation
+# ---------------------------------------------------------------------------------------------
+
+
+def _is_number(x: Any) -> bool:
+    return isinstance(x, (int, float)) and not isinstance(x, bool) and math.isfinite(x)
+
+
+def _range(name: str, field: str, value: Any) -> Range:
+    if value is None:
+        raise ValueError(f"object class {name!r}: field {field!r} is missing")
+    if not isinstance(value, (list, tuple)) or len(value) != 2 or not all(_is_number(v) for v in value):
+        raise ValueError(
+            f"object class {name!r}: field {field!r} must be [low, high] (two finite numbers), got {value!r}"
+        )
+    low, high = float(value[0]), float(value[1])
+    if low <= 0.0 or high <= 0.0:
+        raise ValueError(f"object class {name!r}: field {field!r} must be positive, got {value!r}")
+    if low > high:
+        raise ValueError(f"object class {name!r}: field {field!r} has low > high, got {value!r}")
+    return (low, high)
+
+
+def _text(name: str, field: str, value: Any) -> str:
+    if not isinstance(value, str) or not value.strip():
+        raise ValueError(f"object class {name!r}: field {field!r} must be a non-empty string, got {value!r}")
+    return value.strip()
+
+
+def _object_class(name: Any, entry: Any) -> ObjectClass:
+    if not isinstance(name, str) or not name:
+        raise ValueError(f"object class name must be a non-empty string, got {name!r}")
+    if not isinstance(entry, dict):
+        raise ValueError(f"object class {name!r}: must be a mapping of fields, got {type(entry).__name__}")
+    for field in _REQUIRED:
+        if field not in entry:
+            raise ValueError(f"object class {name!r}: field {field!r} is missing")
+    ranges = {field: _range(name, field, entry[field]) for field in RANGE_FIELDS}
+    in_model = entry["in_annulus_model"]
+    if not isinstance(in_model, bool):
+        raise ValueError(f"object class {name!r}: field 'in_annulus_model' must be true or false, got {in_model!r}")
+    sources = entry["sources"]
+    if isinstance(sources, str):
+        sources = [sources]
+    if not isinstance(sources, (list, tuple)) or not sources:
+        raise ValueError(f"object class {name!r}: field 'sources' must list at least one source, got {sources!r}")
+    for s in sources:
+        if not isinstance(s, str) or not s.strip():
+            raise ValueError(f"object class {name!r}: field 'sources' has an empty or non-text entry {s!r}")
+    # H kappa_obj < 1 at every corner of the box: the thickest layer must be thinner than the smallest radius.
+    h_hi, r_lo = ranges["thickness_mm"][1], ranges["radius_mm"][0]
+    if h_hi >= r_lo:
+        raise ValueError(
+            f"object class {name!r}: field 'thickness_mm' must stay below the radius (H_hi = {h_hi} mm >= "
+            f"R_lo = {r_lo} mm gives H kappa_obj >= 1, where eq. 3.2 diverges)"
+        )
+    e_lo, e_hi = ranges["youngs_modulus_kpa"]
+    return ObjectClass(
+        name=name,
+        description=_text(name, "description", entry["description"]),
+        youngs_modulus_kpa=(e_lo, e_hi),
+        shear_modulus_kpa=(e_lo / 3.0, e_hi / 3.0),
+        density_kg_m3=ranges["density_kg_m3"],
+        failure_strain=ranges["failure_strain"],
+        failure_stress_kpa=ranges["failure_stress_kpa"],
+        radius_mm=ranges["radius_mm"],
+        thickness_mm=ranges["thickness_mm"],
+        in_annulus_model=in_model,
+        reason=_text(name, "reason", entry["reason"]),
+        sources=tuple(s.strip() for s in sources),
+    )
+
+
+def _classes(raw: dict[str, Any], label: str) -> dict[str, ObjectClass]:
+    entries = raw.get("classes")
+    if not isinstance(entries, dict) or not entries:
+        raise ValueError(f"{label}: 'classes' must be a non-empty mapping of class name -> fields")
+    return {name: _object_class(name, entry) for name, entry in entries.items()}
+
+
+def _use_case(name: Any, entry: Any, classes: dict[str, ObjectClass]) -> UseCase:
+    if not isinstance(name, str) or not name:
+        raise ValueError(f"use case name must be a non-empty string, got {name!r}")
+    if not isinstance(entry, dict):
+        raise ValueError(f"use case {name!r}: must be a mapping, got {type(entry).__name__}")
+    weights = entry.get("weights")
+    if not isinstance(weights, dict) or not weights:
+        raise ValueError(f"use case {name!r}: field 'weights' must be a non-empty mapping of class -> weight")
+    out: dict[str, float] = {}
+    for cls, w in weights.items():
+        if cls not in classes:
+            raise ValueError(f"use case {name!r}: unknown object class {cls!r} in 'weights'")
+        if not _is_number(w):
+            raise ValueError(f"use case {name!r}: weight of class {cls!r} must be a finite number, got {w!r}")
+        if w < 0:
+            raise ValueError(f"use case {name!r}: weight of class {cls!r} is negative ({w!r})")
+        if w > 0 and not classes[cls].in_annulus_model:
+            raise ValueError(
+                f"use case {name!r}: class {cls!r} is outside the annulus model; list it under 'unreachable', "
+                "not in 'weights'"
+            )
+        out[cls] = float(w)
+    total = sum(out.values())
+    if not total > 0.0:
+        raise ValueError(f"use case {name!r}: weights must sum to a positive number, got {total!r}")
+    unreachable = entry.get("unreachable", [])
+    if unreachable is None:
+        unreachable = []
+    if not isinstance(unreachable, (list, tuple)):
+        raise ValueError(f"use case {name!r}: field 'unreachable' must be a list of class names, got {unreachable!r}")
+    for cls in unreachable:
+        if cls not in classes:
+            raise ValueError(f"use case {name!r}: unknown object class {cls!r} in 'unreachable'")
+        if classes[cls].in_annulus_model:
+            raise ValueError(f"use case {name!r}: class {cls!r} in 'unreachable' is inside the annulus model")
+    return UseCase(
+        name=name,
+        description=str(entry.get("description", "")).strip(),
+        reason=str(entry.get("reason", "")).strip(),
+        weights=out,
+        unreachable=tuple(unreachable),
+    )
+
+
+def _use_cases(raw: dict[str, Any], label: str, classes: dict[str, ObjectClass]) -> tuple[dict[str, UseCase], str]:
+    entries = raw.get("use_cases")
+    if not isinstance(entries, dict):
+        raise ValueError(f"{label}: 'use_cases' must be a mapping with a 'default' and at least one use case")
+    entries = dict(entries)
+    default = entries.pop("default", None)
+    cases = {name: _use_case(name, entry, classes) for name, entry in entries.items()}
+    if not isinstance(default, str) or default not in cases:
+        raise ValueError(f"{label}: use_cases 'default' must name one of {sorted(cases)}, got {default!r}")
+    return cases, default
+
+
+# ---------------------------------------------------------------------------------------------
+# Public API
+# ---------------------------------------------------------------------------------------------
+
+
+def load_catalogue(path: str | Path | None = None) -> dict[str, ObjectClass]:
+    """The object classes of the catalogue, ``{name: ObjectClass}``, in file order.
+
+    Reads the packaged ``objects.yaml`` unless ``path`` is given. The whole file is validated (classes and use
+    cases); ``ValueError`` names the class (or use case) and the field at fault.
+    """
+    raw, label = _load_raw(path)
+    classes = _classes(raw, label)
+    _use_cases(raw, label, classes)  # validated with the classes: a bad use case is a bad file
+    return classes
+
+
+def load_use_cases(path: str | Path | None = None) -> dict[str, UseCase]:
+    """The catalogue's use cases, ``{name: UseCase}`` (validated against its classes)."""
+    raw, label = _load_raw(path)
+    return _use_cases(raw, label, _classes(raw, label))[0]
+
+
+def default_use_case(path: str | Path | None = None) -> str:
+    """The name of the default use case (``use_cases.default`` in the file)."""
+    raw, label = _load_raw(path)
+    return _use_cases(raw, label, _classes(raw, label))[1]
+
+
+def use_case_weights(name: str | None = None, path: str | Path | None = None) -> dict[str, float]:
+    """The class weights of use case ``name`` (the default use case if ``None``), normalized to sum 1.
+
+    Only classes inside the annulus model carry weight; ``KeyError`` if there is no such use case.
+    """
+    raw, label = _load_raw(path)
+    cases, default = _use_cases(raw, label, _classes(raw, label))
+    key = default if name is None else name
+    if key not in cases:
+        raise KeyError(f"no use case {key!r} in {label}; known: {sorted(cases)}")
+    weights = cases[key].weights
+    total = sum(weights.values())
+    return {cls: w / total for cls, w in weights.items()}
+
+
+def stiffness_range(cls: ObjectClass, width_mm: float = 5.0, scale_modulus_kpa: float = 50.0) -> tuple[float, float]:
+    """``(k~_lo, k~_hi)``: eq. 3.2's dimensionless Winkler stiffness ``k~ = k_obj w/mu`` over the class's box.
+
+    ``k~`` grows with the shear modulus and with ``H``, and falls with ``R``; the extremes are taken over the
+    eight corners of (shear modulus, radius, thickness). ``width_mm`` and ``scale_modulus_kpa`` are the
+    actuator's scales ``w`` and ``mu`` (the paper's 5 mm and 50 kPa by default).
+    """
+    values = [
+        winkler_stiffness(mu, h, 1e3 / r, width_mm, scale_modulus_kpa)
+        for mu, r, h in itertools.product(cls.shear_modulus_kpa, cls.radius_mm, cls.thickness_mm)
+    ]
+    return (min(values), max(values))

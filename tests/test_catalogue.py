@@ -1,0 +1,272 @@
+"""The real-object catalogue (``pneunet_env/data/objects.yaml``) and its loader (``pneunet_env.catalogue``).
+
+* every packaged class is complete and valid (ranges, sources, ``H < R``, the ``H`` rule of the file's header);
+* the use cases weight only known classes inside the annulus model, and the default one exists;
+* malformed files raise ``ValueError`` naming the class (or use case) and the field;
+* nothing is printed.
+"""
+
+from __future__ import annotations
+
+import copy
+import math
+from importlib import resources
+
+import pytest
+import yaml
+
+from pneunet_env.catalogue import (
+    RANGE_FIELDS,
+    ObjectClass,
+    default_use_case,
+    load_catalogue,
+    load_use_cases,
+    stiffness_range,
+    use_case_weights,
+)
+from pneunet_env.physics.contact import winkler_stiffness
+
+CATALOGUE = load_catalogue()
+
+# The material classes the catalogue must cover (hydrogels, phantoms, elastomers, rubber, soft food, fruit).
+REQUIRED_CLASSES = (
+    "gelatin_gel",
+    "agar_gel",
+    "pva_cryogel",
+    "soft_silicone",
+    "firm_silicone",
+    "natural_rubber",
+    "soft_cheese",
+    "apple",
+    "kiwifruit",
+)
+REACH_RADIUS_MM = 9.4  # the free actuator reaches w kappa <= 0.53 with w = 5 mm
+
+
+# ---------------------------------------------------------------------------------------------
+# The packaged catalogue
+# ---------------------------------------------------------------------------------------------
+
+
+def test_the_yaml_is_package_data():
+    res = resources.files("pneunet_env.data").joinpath("objects.yaml")
+    assert res.is_file()
+    assert yaml.safe_load(res.read_text(encoding="utf-8"))["classes"]
+
+
+def test_required_classes_and_an_out_of_model_class_are_present():
+    assert set(REQUIRED_CLASSES) <= set(CATALOGUE)
+    assert any(not c.in_annulus_model for c in CATALOGUE.values()), "no class outside eq. 3.2 (foams, sponges)"
+
+
+@pytest.mark.parametrize("name", list(CATALOGUE))
+def test_every_row_is_complete_and_valid(name):
+    c = CATALOGUE[name]
+    assert isinstance(c, ObjectClass) and c.name == name
+    assert c.description and c.reason
+    for field in (*RANGE_FIELDS, "shear_modulus_kpa"):
+        low, high = getattr(c, field)
+        assert math.isfinite(low) and math.isfinite(high), field
+        assert 0.0 < low <= high, field
+    assert c.shear_modulus_kpa == pytest.approx((c.youngs_modulus_kpa[0] / 3, c.youngs_modulus_kpa[1] / 3))
+    assert c.sources and all(isinstance(s, str) and s.strip() for s in c.sources)
+    assert c.thickness_mm[1] < c.radius_mm[0], "H must stay below R at every corner (H kappa_obj < 1)"
+    assert isinstance(c.in_annulus_model, bool)
+
+
+@pytest.mark.parametrize("name", list(CATALOGUE))
+def test_thickness_follows_the_stated_rule(name):
+    # H_hi = min(10 mm, R_lo/2), H_lo = H_hi/2 (rounded to 0.1 mm at most).
+    c = CATALOGUE[name]
+    h_hi = min(10.0, c.radius_mm[0] / 2)
+    assert c.thickness_mm[1] == pytest.approx(h_hi, abs=0.06)
+    assert c.thickness_mm[0] == pytest.approx(c.thickness_mm[1] / 2, abs=0.06)
+
+
+@pytest.mark.parametrize("name", [n for n, c in CATALOGUE.items() if c.in_annulus_model])
+def test_classes_in_the_model_are_within_the_actuators_reach(name):
+    assert CATALOGUE[name].radius_mm[0] >= REACH_RADIUS_MM
+
+
+# ---------------------------------------------------------------------------------------------
+# Use cases
+# ---------------------------------------------------------------------------------------------
+
+
+def test_default_use_case_weights_name_only_known_classes_inside_the_model():
+    weights = use_case_weights()
+    assert weights and set(weights) <= set(CATALOGUE)
+    assert all(w >= 0 for w in weights.values())
+    assert sum(weights.values()) == pytest.approx(1.0)
+    assert all(CATALOGUE[n].in_annulus_model for n, w in weights.items() if w > 0)
+    assert weights == use_case_weights(default_use_case())
+
+
+def test_every_use_case_is_valid_and_there_is_an_alternative():
+    cases = load_use_cases()
+    assert default_use_case() in cases and len(cases) >= 2
+    for name, case in cases.items():
+        assert case.description and case.reason, name
+        assert set(case.weights) <= set(CATALOGUE), name
+        assert all(not CATALOGUE[c].in_annulus_model for c in case.unreachable), name
+        assert sum(use_case_weights(name).values()) == pytest.approx(1.0)
+
+
+def test_unknown_use_case_is_a_key_error():
+    with pytest.raises(KeyError, match="no_such_case"):
+        use_case_weights("no_such_case")
+
+
+# ---------------------------------------------------------------------------------------------
+# stiffness_range
+# ---------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("name", list(CATALOGUE))
+def test_stiffness_range_spans_the_corners(name):
+    c = CATALOGUE[name]
+    lo, hi = stiffness_range(c)
+    assert 0.0 < lo <= hi
+    # k~ grows with mu and H and falls with R: the extremes are (mu_lo, R_hi, H_lo) and (mu_hi, R_lo, H_hi).
+    soft = winkler_stiffness(c.shear_modulus_kpa[0], c.thickness_mm[0], 1e3 / c.radius_mm[1], 5.0, 50.0)
+    stiff = winkler_stiffness(c.shear_modulus_kpa[1], c.thickness_mm[1], 1e3 / c.radius_mm[0], 5.0, 50.0)
+    assert (lo, hi) == pytest.approx((soft, stiff))
+    # the scales enter linearly: k~ = k_obj w / mu
+    lo2, hi2 = stiffness_range(c, width_mm=10.0, scale_modulus_kpa=100.0)
+    assert (lo2, hi2) == pytest.approx((lo, hi))
+
+
+# ---------------------------------------------------------------------------------------------
+# Validation of malformed files
+# ---------------------------------------------------------------------------------------------
+
+_GOOD_CLASS = {
+    "description": "a test gel",
+    "youngs_modulus_kpa": [3.0, 30.0],
+    "density_kg_m3": [1000.0, 1050.0],
+    "failure_strain": [0.2, 0.4],
+    "failure_stress_kpa": [1.0, 10.0],
+    "radius_mm": [15.0, 40.0],
+    "thickness_mm": [3.75, 7.5],
+    "in_annulus_model": True,
+    "reason": "solid gel",
+    "sources": ["Somebody (2020) A paper. doi:10.0/x"],
+}
+_GOOD_FOAM = {**_GOOD_CLASS, "description": "a test foam", "in_annulus_model": False, "reason": "a foam"}
+_GOOD = {
+    "schema_version": 1,
+    "classes": {"test_gel": _GOOD_CLASS, "test_foam": _GOOD_FOAM},
+    "use_cases": {
+        "default": "bench",
+        "bench": {"description": "d", "reason": "r", "weights": {"test_gel": 1.0}, "unreachable": ["test_foam"]},
+    },
+}
+
+
+def _write(tmp_path, doc):
+    path = tmp_path / "objects.yaml"
+    path.write_text(yaml.safe_dump(doc), encoding="utf-8")
+    return path
+
+
+def _bad(mutate):
+    doc = copy.deepcopy(_GOOD)
+    mutate(doc)
+    return doc
+
+
+def test_the_minimal_good_file_loads(tmp_path):
+    path = _write(tmp_path, _GOOD)
+    assert set(load_catalogue(path)) == {"test_gel", "test_foam"}
+    assert use_case_weights(path=path) == {"test_gel": 1.0}
+
+
+_CLS = "test_gel"
+
+
+def _set(field, value, cls=_CLS):
+    def mutate(doc):
+        doc["classes"][cls][field] = value
+
+    return mutate
+
+
+def _drop(field, cls=_CLS):
+    def mutate(doc):
+        del doc["classes"][cls][field]
+
+    return mutate
+
+
+def _weights(weights, unreachable=("test_foam",)):
+    def mutate(doc):
+        doc["use_cases"]["bench"]["weights"] = weights
+        doc["use_cases"]["bench"]["unreachable"] = list(unreachable)
+
+    return mutate
+
+
+BAD_ROWS = {
+    # kind: (mutation, words the message must contain)
+    "missing range field": (_drop("radius_mm"), ["test_gel", "radius_mm", "missing"]),
+    "missing failure field": (_drop("failure_stress_kpa"), ["test_gel", "failure_stress_kpa", "missing"]),
+    "missing boolean": (_drop("in_annulus_model"), ["test_gel", "in_annulus_model", "missing"]),
+    "missing reason": (_drop("reason"), ["test_gel", "reason", "missing"]),
+    "null range": (_set("density_kg_m3", None), ["test_gel", "density_kg_m3", "missing"]),
+    "low > high": (_set("youngs_modulus_kpa", [30.0, 3.0]), ["test_gel", "youngs_modulus_kpa", "low > high"]),
+    "zero value": (_set("failure_strain", [0.0, 0.4]), ["test_gel", "failure_strain", "positive"]),
+    "negative value": (_set("density_kg_m3", [-1.0, 1000.0]), ["test_gel", "density_kg_m3", "positive"]),
+    "not a pair": (_set("radius_mm", [15.0]), ["test_gel", "radius_mm", "[low, high]"]),
+    "not numbers": (_set("radius_mm", ["a", "b"]), ["test_gel", "radius_mm", "[low, high]"]),
+    "missing sources": (_drop("sources"), ["test_gel", "sources", "missing"]),
+    "empty sources": (_set("sources", []), ["test_gel", "sources"]),
+    "blank source": (_set("sources", ["  "]), ["test_gel", "sources"]),
+    "H >= radius": (_set("thickness_mm", [5.0, 15.0]), ["test_gel", "thickness_mm", "radius"]),
+    "non-boolean in_annulus_model": (_set("in_annulus_model", "yes"), ["test_gel", "in_annulus_model"]),
+    "unknown class in use case": (_weights({"test_gel": 1.0, "tofu": 1.0}), ["bench", "tofu", "unknown"]),
+    "negative weight": (_weights({"test_gel": -1.0}), ["bench", "test_gel", "negative"]),
+    "weights summing to zero": (_weights({"test_gel": 0.0}), ["bench", "sum to a positive"]),
+    "non-numeric weight": (_weights({"test_gel": "lots"}), ["bench", "test_gel", "number"]),
+    "out-of-model class weighted": (
+        _weights({"test_gel": 1.0, "test_foam": 1.0}, unreachable=()),
+        ["bench", "test_foam", "outside the annulus model"],
+    ),
+    "in-model class listed unreachable": (
+        _weights({"test_gel": 1.0}, unreachable=("test_foam", "test_gel")),
+        ["bench", "test_gel", "unreachable"],
+    ),
+    "unknown default": (lambda doc: doc["use_cases"].update(default="garden"), ["default", "garden"]),
+}
+
+
+@pytest.mark.parametrize("kind", list(BAD_ROWS))
+def test_bad_rows_raise_value_error_naming_class_and_field(tmp_path, kind):
+    mutate, words = BAD_ROWS[kind]
+    path = _write(tmp_path, _bad(mutate))
+    with pytest.raises(ValueError) as info:
+        load_catalogue(path)
+    message = str(info.value)
+    for word in words:
+        assert word in message, (kind, message)
+
+
+def test_not_a_mapping_or_not_yaml(tmp_path):
+    path = tmp_path / "objects.yaml"
+    path.write_text("- just\n- a list\n", encoding="utf-8")
+    with pytest.raises(ValueError, match="mapping"):
+        load_catalogue(path)
+    path.write_text("classes: [unclosed\n", encoding="utf-8")
+    with pytest.raises(ValueError, match="YAML"):
+        load_catalogue(path)
+
+
+def test_nothing_is_printed(capsys, tmp_path):
+    load_catalogue()
+    load_use_cases()
+    use_case_weights()
+    for c in CATALOGUE.values():
+        stiffness_range(c)
+    with pytest.raises(ValueError):
+        load_catalogue(_write(tmp_path, _bad(_drop("sources"))))
+    out, err = capsys.readouterr()
+    assert out == "" and err == ""
