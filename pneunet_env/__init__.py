@@ -19,6 +19,7 @@ __all__ = [
     "load_config",
     "load_path",
     "solve_equilibrium",
+    "PAPER_TASK",
     "__version__",
 ]
 
@@ -29,6 +30,17 @@ if ENV_ID not in _gym.registry:
         entry_point="pneunet_env.envs.grasp:PneuNetGraspEnv",
         vector_entry_point="pneunet_env.envs.grasp_vector:PneuNetGraspVectorEnv",
         max_episode_steps=EnvConfig().episode_steps,
+    )
+PAPER_ENV_ID = "PneuNetGrasp-Paper-v0"
+PAPER_TASK = {"use_case": None, "class_weights": None, "damage_rule": "crush_fraction"}
+"""The paper's task: its 250 mm ring (the objects section's ranges) and the crush-fraction damage rule."""
+if PAPER_ENV_ID not in _gym.registry:
+    _gym.register(
+        id=PAPER_ENV_ID,
+        entry_point="pneunet_env.envs.grasp:PneuNetGraspEnv",
+        vector_entry_point="pneunet_env.envs.grasp_vector:PneuNetGraspVectorEnv",
+        max_episode_steps=EnvConfig().episode_steps,
+        kwargs=dict(PAPER_TASK),
     )
 RIGID_ENV_ID = "RigidGrasp-v0"
 if RIGID_ENV_ID not in _gym.registry:

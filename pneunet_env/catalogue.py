@@ -19,6 +19,7 @@ from an installed wheel as long as the wheel ships it.
 
 from __future__ import annotations
 
+import functools
 import itertools
 import math
 from dataclasses import dataclass
@@ -38,6 +39,8 @@ __all__ = [
     "default_use_case",
     "use_case_weights",
     "stiffness_range",
+    "ClassTable",
+    "class_table",
     "RANGE_FIELDS",
 ]
 
@@ -316,3 +319,49 @@ def stiffness_range(cls: ObjectClass, width_mm: float = 5.0, scale_modulus_kpa: 
         for mu, r, h in itertools.product(cls.shear_modulus_kpa, cls.radius_mm, cls.thickness_mm)
     ]
     return (min(values), max(values))
+
+
+@dataclass(frozen=True)
+class ClassTable:
+    """The classes an env draws from, as arrays for vectorised sampling (built once per config).
+
+    ``names[i]`` is class ``i``; ``cumulative`` the cumulative normalized weights; each ``*_lo``/``*_hi`` an array
+    over the classes (shear modulus from ``E/3``, kPa; radius and thickness in mm; density kg/m^3; failure strain;
+    failure stress kPa).
+    """
+
+    names: tuple[str, ...]
+    cumulative: Any
+    shear_modulus_kpa: Any
+    radius_mm: Any
+    thickness_mm: Any
+    density_kg_m3: Any
+    failure_strain: Any
+    failure_stress_kpa: Any
+
+
+def class_table(weights: tuple[tuple[str, float], ...]) -> ClassTable:
+    """A :class:`ClassTable` for ``((class, weight), ...)`` (validated names, positive total weight)."""
+    return _class_table(tuple(weights))
+
+
+@functools.lru_cache(maxsize=32)
+def _class_table(weights: tuple[tuple[str, float], ...]) -> ClassTable:
+    import numpy as np
+
+    classes = load_catalogue()
+    names = tuple(n for n, w in weights if w > 0.0)
+    for n, _ in weights:
+        if n not in classes:
+            raise ValueError(f"unknown object class {n!r}; known: {sorted(classes)}")
+        if not classes[n].in_annulus_model:
+            raise ValueError(f"object class {n!r} lies outside eq. 3.2's annulus model ({classes[n].reason})")
+    w = np.array([dict(weights)[n] for n in names], dtype=float)
+    if not names or not np.isfinite(w).all() or w.sum() <= 0.0:
+        raise ValueError(f"object class weights must be finite, >= 0 and sum to > 0, got {dict(weights)!r}")
+
+    def col(field):
+        return np.array([getattr(classes[n], field) for n in names], dtype=float).T  # (2, n_classes)
+
+    return ClassTable(names, np.cumsum(w) / w.sum(), col("shear_modulus_kpa"), col("radius_mm"), col("thickness_mm"),
+                      col("density_kg_m3"), col("failure_strain"), col("failure_stress_kpa"))

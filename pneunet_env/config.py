@@ -74,7 +74,12 @@ LOG_UNIFORM_FIELDS = ("object_shear_modulus_kpa", "object_density_kg_m3")
 
 @dataclass(frozen=True)
 class ObjectConfig:
-    """The objects an episode draws from: ``(low, high)`` ranges (physical units), sampled once per episode.
+    """The objects an episode draws from: catalogue classes, or ``(low, high)`` ranges (physical units).
+
+    With ``use_case`` (a use case of the catalogue, :mod:`pneunet_env.catalogue`) or ``class_weights`` (``{class:
+    weight}``) an episode draws a class by weight, then its properties from the class's literature ranges (modulus
+    and density log-uniform, the rest uniform); the ranges below are then not used. With both ``None`` the ranges
+    are sampled, as in the paper's task.
 
     Attributes:
         object_shear_modulus_kpa: ``mu_obj`` (kPa), log-uniform.
@@ -82,21 +87,53 @@ class ObjectConfig:
         object_curvature_per_m: the outer curvature ``kappa_obj`` (1/m), uniform.
         object_density_kg_m3: ``rho`` (kg/m^3), log-uniform.
         object_failure_strain: ``eps_f``, uniform: the object fails at a stress ``eps_f E_obj = 3 eps_f mu_obj``.
+        use_case: a use case of the catalogue (``kitchen``, ``lab_bench``, ...), or ``None``.
+        class_weights: ``{class: weight}`` (overrides ``use_case``), or ``None``.
     """
+
+    @property
+    def from_catalogue(self) -> bool:
+        """Whether objects are drawn from the catalogue's classes (else from the ranges)."""
+        return self.use_case is not None or self.class_weights is not None
+
+    @property
+    def class_items(self) -> tuple[tuple[str, float], ...]:
+        """``((class, weight), ...)`` of the catalogue draw (``class_weights``, else the use case's)."""
+        if self.class_weights is not None:
+            return tuple(self.class_weights.items())
+        from pneunet_env.catalogue import use_case_weights
+
+        return tuple(use_case_weights(self.use_case).items())
 
     object_shear_modulus_kpa: tuple[float, float] = (0.1, 1500.0)
     object_thickness_mm: tuple[float, float] = (10.0, 10.0)
     object_curvature_per_m: tuple[float, float] = (4.0, 4.0)
     object_density_kg_m3: tuple[float, float] = (1000.0, 1000.0)
     object_failure_strain: tuple[float, float] = (0.3, 0.3)
+    use_case: str | None = "kitchen"
+    class_weights: dict[str, float] | None = None
 
     def __post_init__(self) -> None:
+        if self.use_case is not None or self.class_weights is not None:
+            from pneunet_env.catalogue import class_table, load_use_cases
+
+            if self.class_weights is None:
+                cases = load_use_cases()
+                if self.use_case not in cases:
+                    raise ValueError(f"config key 'use_case' must be one of {sorted(cases)} or null (the ranges "
+                                     f"below), got {self.use_case!r}")
+            try:
+                class_table(self.class_items)
+            except ValueError as exc:
+                raise ValueError(f"config key 'class_weights': {exc}") from None
         for name in RANGE_FIELDS:
             lo, hi = getattr(self, name)
             if lo <= 0.0:
                 raise ValueError(f"config key {name!r} must be > 0, got range {[lo, hi]!r}")
         # The object must fit the model: H kappa_obj < 1 (eq. 3.2).
         h_hi, c_hi = self.object_thickness_mm[1], self.object_curvature_per_m[1]
+        if self.from_catalogue:
+            return
         if h_hi * 1e-3 * c_hi >= 1.0:
             raise ValueError(
                 f"config keys 'object_thickness_mm' (up to {h_hi!r} mm) and 'object_curvature_per_m' (up to "
@@ -120,6 +157,10 @@ class TaskConfig:
         reward_hold, reward_success, penalty_damage, penalty_slip: the reward's terms (>= 0; penalties subtracted).
         terminate_on_damage, terminate_on_slip: whether damage / a drop ends the episode.
         observe_volume: add the chamber's volume change (a flow sensor) to the observation.
+        damage_rule: ``"hoop_strain"``: crushed when the hoop strain ``delta kappa_obj`` exceeds the object's failure
+            strain, overstressed when the traction exceeds its failure stress (eq. 3.2's annulus, whose indentation
+            shrinks the whole ring); ``"crush_fraction"``: crushed when ``delta > crush_fraction H``, overstressed
+            when ``F > 3 eps_f mu_obj`` (the paper-task rule). See ``docs/env.md``.
     """
 
     max_pressure_kpa: float = 60.0
@@ -137,8 +178,11 @@ class TaskConfig:
     terminate_on_damage: bool = True
     terminate_on_slip: bool = True
     observe_volume: bool = False
+    damage_rule: str = "hoop_strain"
 
     def __post_init__(self) -> None:
+        if self.damage_rule not in DAMAGE_RULES:
+            raise ValueError(f"config key 'damage_rule' must be one of {DAMAGE_RULES}, got {self.damage_rule!r}")
         for name in ("max_pressure_kpa", "max_pressure_step_kpa", "crush_fraction", "friction_coefficient",
                      "gravity_m_s2"):
             if getattr(self, name) <= 0.0:
@@ -160,6 +204,9 @@ class TaskConfig:
         """Steps in an episode: ``squeeze_steps + hold_steps`` (then ``truncated``)."""
         return self.squeeze_steps + self.hold_steps
 
+
+DAMAGE_RULES = ("hoop_strain", "crush_fraction")
+"""The damage rules (:class:`TaskConfig` ``damage_rule``)."""
 
 MAX_RENDER_PIXELS = 4096
 """Largest ``render.width`` / ``render.height`` (a frame is drawn supersampled in memory)."""
@@ -238,7 +285,7 @@ class EnvConfig:
                 raise ValueError(f"config section {section!r} must be a {cls.__name__}, got "
                                  f"{type(getattr(self, section)).__name__}")
         c_hi = self.objects.object_curvature_per_m[1]
-        if self.actuator.width_mm * 1e-3 * c_hi >= math.pi:
+        if not self.objects.from_catalogue and self.actuator.width_mm * 1e-3 * c_hi >= math.pi:
             raise ValueError(
                 f"config key 'object_curvature_per_m' (up to {c_hi!r} /m) gives w kappa_obj >= pi for "
                 f"width_mm = {self.actuator.width_mm!r}"
@@ -280,7 +327,8 @@ class EnvConfig:
         out: dict[str, dict[str, Any]] = {}
         for section in SECTIONS:
             obj = getattr(self, section)
-            out[section] = {f.name: (list(v) if isinstance(v := getattr(obj, f.name), tuple) else v)
+            out[section] = {f.name: (list(v) if isinstance(v := getattr(obj, f.name), tuple) else
+                                     dict(v) if isinstance(v, dict) else v)
                             for f in dataclasses.fields(obj)}
         return out
 
@@ -341,7 +389,36 @@ def _range(name: str, value: Any) -> tuple[float, float]:
     return (lo, hi)
 
 
-_CHECKS = {"float": _float, "int": _int, "bool": _bool, "tuple[float, float]": _range}
+def _opt_str(name: str, value: Any) -> str | None:
+    if value is None or isinstance(value, str):
+        return value
+    raise ValueError(f"config key {name!r} must be a string or null, got {value!r}")
+
+
+def _str(name: str, value: Any) -> str:
+    if isinstance(value, str):
+        return value
+    raise ValueError(f"config key {name!r} must be a string, got {value!r}")
+
+
+def _weights(name: str, value: Any) -> dict[str, float] | None:
+    if value is None:
+        return None
+    if not isinstance(value, Mapping) or not value:
+        raise ValueError(f"config key {name!r} must be a mapping of class names to weights, or null, got {value!r}")
+    out = {}
+    for k, v in value.items():
+        if not isinstance(k, str):
+            raise ValueError(f"config key {name!r}: class names must be strings, got {k!r}")
+        w = _float(f"{name}[{k!r}]", v)
+        if w < 0.0:
+            raise ValueError(f"config key {name!r}: weight of {k!r} must be >= 0, got {v!r}")
+        out[k] = w
+    return out
+
+
+_CHECKS = {"float": _float, "int": _int, "bool": _bool, "tuple[float, float]": _range, "str | None": _opt_str,
+           "str": _str, "dict[str, float] | None": _weights}
 
 
 def _build_section(section: str, values: Mapping[str, Any]):

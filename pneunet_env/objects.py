@@ -70,6 +70,10 @@ class GraspObject:
         density_kg_m3: ``rho`` (kg/m^3).
         failure_strain: ``eps_f``: the object fails at a stress ``eps_f E_obj = 3 eps_f mu_obj``.
 
+    Damage (the task's ``damage_rule``): ``failure_stress_kpa`` (``sigma_f``, kPa; a catalogue class's own, else
+    ``3 eps_f mu_obj``), and ``class_id``: the index of its catalogue class in the env's class table (``-1`` for an
+    object drawn from ranges or built by hand).
+
     Dimensionless attributes (derived):
         stiffness: ``k~ = k_obj w/mu`` (eq. 3.2).
         curvature: ``w kappa_obj``.
@@ -84,6 +88,8 @@ class GraspObject:
     stiffness: float | np.ndarray
     curvature: float | np.ndarray
     thickness: float | np.ndarray
+    failure_stress_kpa: float | np.ndarray = float("nan")
+    class_id: int | np.ndarray = -1
 
     @classmethod
     def from_material(
@@ -116,6 +122,7 @@ class GraspObject:
             stiffness=_as(k),
             curvature=_as(c),
             thickness=_as(np.asarray(thickness_mm, dtype=float) / scales.width_mm),
+            failure_stress_kpa=_as(3.0 * np.asarray(failure_strain, float) * np.asarray(shear_modulus_kpa, float)),
         )
 
     @classmethod

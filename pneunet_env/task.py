@@ -52,6 +52,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+from pneunet_env.catalogue import class_table
 from pneunet_env.config import LOG_UNIFORM_FIELDS, RANGE_FIELDS, EnvConfig
 from pneunet_env.objects import GraspObject
 from pneunet_env.physics.batched import solve_batch
@@ -91,6 +92,9 @@ __all__ = [
     "newton_contact_batch",
     "free_volume_change",
     "reset_state",
+    "class_names",
+    "class_name",
+    "draw_count",
     "warn_if_beyond_convergence",
     "step",
     "merge",
@@ -131,6 +135,7 @@ class TaskParams(NamedTuple):
     width_mm: float  # w
     shear_modulus_kpa: float  # mu
     depth_mm: float  # t
+    damage_rule: str = "crush_fraction"  # or "hoop_strain" (config.TaskConfig.damage_rule)
 
     @classmethod
     def from_config(cls, config: EnvConfig) -> TaskParams:
@@ -173,7 +178,55 @@ def sample_object(
         ValueError: an unknown pin key, conflicting pins, or an invalid value (named).
     """
     shape: tuple[int, ...] = () if size is None else tuple(np.atleast_1d(size).astype(int))
-    return object_from_uniforms(rng.random((len(RANGE_FIELDS),) + shape), config, pinned, batch=size is not None)
+    return object_from_uniforms(rng.random((draw_count(config),) + shape), config, pinned, batch=size is not None)
+
+
+CATALOGUE_DRAWS = ("class", "object_shear_modulus_kpa", "radius_mm", "object_thickness_mm", "object_density_kg_m3",
+                   "object_failure_strain", "failure_stress_kpa")
+"""The uniform draws of a catalogue object, in order: the class (by weight), then its properties from the class's
+ranges (shear modulus, density and failure stress log-uniform; radius, thickness and failure strain uniform)."""
+
+
+def class_names(config: EnvConfig) -> tuple[str, ...]:
+    """The names of the catalogue classes an env draws from, by class code (empty when objects come from ranges)."""
+    return class_table(config.objects.class_items).names if config.objects.from_catalogue else ()
+
+
+def class_name(names: tuple[str, ...], class_id: int) -> str:
+    """The name of class code ``class_id`` (``"ranges"`` for -1: an object drawn from ranges or built by hand)."""
+    return names[class_id] if 0 <= class_id < len(names) else "ranges"
+
+
+def draw_count(config: EnvConfig) -> int:
+    """Uniform draws per object: 7 from the catalogue (:data:`CATALOGUE_DRAWS`), else 5 (``RANGE_FIELDS``)."""
+    return len(CATALOGUE_DRAWS) if config.objects.from_catalogue else len(RANGE_FIELDS)
+
+
+def _catalogue_values(u: np.ndarray, config: EnvConfig, batch: bool) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The properties of catalogue objects from their uniforms ``u`` (``(7,) + shape``), and their extra fields."""
+    tab = class_table(config.objects.class_items)
+    cid = np.minimum(np.searchsorted(tab.cumulative, u[0], side="right"), len(tab.names) - 1)
+
+    def uniform(col, x):
+        lo, hi = col[0][cid], col[1][cid]
+        return lo + (hi - lo) * x
+
+    def log_uniform(col, x):
+        lo, hi = col[0][cid], col[1][cid]
+        return lo * (hi / lo) ** x
+
+    values = {
+        "object_shear_modulus_kpa": log_uniform(tab.shear_modulus_kpa, u[1]),
+        "object_curvature_per_m": 1e3 / uniform(tab.radius_mm, u[2]),
+        "object_thickness_mm": uniform(tab.thickness_mm, u[3]),
+        "object_density_kg_m3": log_uniform(tab.density_kg_m3, u[4]),
+        "object_failure_strain": uniform(tab.failure_strain, u[5]),
+    }
+    extra = {"failure_stress_kpa": log_uniform(tab.failure_stress_kpa, u[6]), "class_id": cid.astype(np.int64)}
+    if not batch:
+        values = {k: float(v) for k, v in values.items()}
+        extra = {"failure_stress_kpa": float(extra["failure_stress_kpa"]), "class_id": int(extra["class_id"])}
+    return values, extra
 
 
 def object_from_uniforms(
@@ -188,16 +241,21 @@ def object_from_uniforms(
     ones to round-off (numpy's vectorised ``**`` may differ from the scalar one in the last bit).
     """
     u = np.asarray(u, dtype=float)
-    if u.ndim == 0 or u.shape[0] != len(RANGE_FIELDS):
-        raise ValueError(f"u must have shape ({len(RANGE_FIELDS)},) + batch shape, got {u.shape}")
+    n_draws = draw_count(config)
+    if u.ndim == 0 or u.shape[0] != n_draws:
+        raise ValueError(f"u must have shape ({n_draws},) + batch shape, got {u.shape}")
     shape = u.shape[1:]
     if batch is None:
         batch = bool(shape)
     values: dict[str, Any] = {}
-    for i, name in enumerate(RANGE_FIELDS):
-        lo, hi = getattr(config.objects, name)
-        v = lo * (hi / lo) ** u[i] if name in LOG_UNIFORM_FIELDS else lo + (hi - lo) * u[i]
-        values[name] = v if batch else float(v)
+    extra: dict[str, Any] | None = None
+    if config.objects.from_catalogue:
+        values, extra = _catalogue_values(u, config, batch)
+    else:
+        for i, name in enumerate(RANGE_FIELDS):
+            lo, hi = getattr(config.objects, name)
+            v = lo * (hi / lo) ** u[i] if name in LOG_UNIFORM_FIELDS else lo + (hi - lo) * u[i]
+            values[name] = v if batch else float(v)
     pins = {k: v for k, v in (pinned or {}).items() if v is not None}
     unknown = sorted(set(pins) - set(PIN_KEYS))
     if unknown:
@@ -223,11 +281,14 @@ def object_from_uniforms(
     )
     if not batch:
         if "object_stiffness" in pins:
-            return GraspObject.from_stiffness(_pin("object_stiffness", pins["object_stiffness"], shape), **common)
-        return GraspObject.from_material(values["object_shear_modulus_kpa"], **common)
-    if "object_stiffness" in pins:
-        return _batch_object(None, _pin("object_stiffness", pins["object_stiffness"], shape, batch), **common)
-    return _batch_object(values["object_shear_modulus_kpa"], None, **common)
+            obj = GraspObject.from_stiffness(_pin("object_stiffness", pins["object_stiffness"], shape), **common)
+        else:
+            obj = GraspObject.from_material(values["object_shear_modulus_kpa"], **common)
+    elif "object_stiffness" in pins:
+        obj = _batch_object(None, _pin("object_stiffness", pins["object_stiffness"], shape, batch), **common)
+    else:
+        obj = _batch_object(values["object_shear_modulus_kpa"], None, **common)
+    return obj if extra is None else dataclasses.replace(obj, **extra)
 
 
 def _first_bad(name: str, value: np.ndarray, bad: np.ndarray, rule: str) -> None:
@@ -273,6 +334,8 @@ def _batch_object(shear_modulus_kpa, stiffness, thickness_mm, curvature_per_m, d
         stiffness=k,
         curvature=c,
         thickness=H_mm / scales.width_mm,
+        failure_stress_kpa=3.0 * eps * mu,
+        class_id=np.full(np.shape(k), -1, dtype=np.int64),
     )
 
 
@@ -306,16 +369,25 @@ class Thresholds(NamedTuple):
 
 
 def object_thresholds(obj: GraspObject, params: TaskParams) -> Thresholds:
-    """The thresholds of ``obj`` in model units (traction ``/mu``, indentation ``/w``).
+    """The thresholds of ``obj`` in model units (traction ``/mu``, indentation ``/w``), by ``params.damage_rule``.
 
-    * failure traction ``sigma_f / mu`` with ``sigma_f = eps_f E_obj = 3 eps_f mu_obj`` (incompressible);
-    * crush indentation ``crush_fraction H / w``;
-    * grip traction ``rho g H / (grip_faces mu_f) / mu``: two faces of a slab of thickness ``H`` pinched,
-      friction carrying the weight per unit contact area ``rho g H``.
+    * ``"hoop_strain"``: eq. 3.2's object is an annulus whose indentation shrinks the whole ring, so the strain
+      that breaks it is the hoop strain ``delta kappa_obj``: crushed when it exceeds the failure strain
+      (``delta~_c = eps_f / (w kappa_obj)``), overstressed when the traction exceeds the failure stress
+      ``sigma_f`` (a catalogue class's own; ``3 eps_f mu_obj`` for an object drawn from ranges);
+    * ``"crush_fraction"`` (the paper task's rule): overstressed above ``3 eps_f mu_obj``, crushed through when
+      ``delta > crush_fraction H``.
+
+    Slip (both): the grip traction ``rho g H / (grip_faces mu_f) / mu``: two faces of a slab of thickness ``H``
+    pinched, friction carrying the weight per unit contact area ``rho g H``. See ``docs/env.md``.
     """
     mu = params.shear_modulus_kpa
-    failure = 3.0 * obj.failure_strain * obj.shear_modulus_kpa / mu
-    crush = params.crush_fraction * obj.thickness
+    if params.damage_rule == "hoop_strain":
+        failure = obj.failure_stress_kpa / mu
+        crush = obj.failure_strain / obj.curvature
+    else:
+        failure = 3.0 * obj.failure_strain * obj.shear_modulus_kpa / mu
+        crush = params.crush_fraction * obj.thickness
     weight_kpa = obj.density_kg_m3 * params.gravity_m_s2 * obj.thickness_mm * 1e-3 * 1e-3  # rho g H, Pa -> kPa
     grip = weight_kpa / (params.grip_faces * params.friction_coefficient) / mu
     return Thresholds(failure, crush, grip)
@@ -568,6 +640,7 @@ def object_info(obj: GraspObject, thresholds: Thresholds, params: TaskParams) ->
         "object_thickness_mm": obj.thickness_mm,
         "object_density_kg_m3": obj.density_kg_m3,
         "object_failure_strain": obj.failure_strain,
+        "object_class": obj.class_id,
         "failure_traction_kpa": thresholds.failure_traction * mu,
         "crush_indentation_mm": thresholds.crush_indentation * w,
         "grip_traction_kpa": thresholds.grip_traction * mu,
@@ -785,7 +858,7 @@ LEAN_KEYS = (
 OBJECT_KEYS = (
     "object_stiffness", "object_stiffness_kpa_per_mm", "object_shear_modulus_kpa", "object_curvature",
     "object_curvature_per_m", "object_thickness_mm", "object_density_kg_m3", "object_failure_strain",
-    "failure_traction_kpa", "crush_indentation_mm", "grip_traction_kpa",
+    "object_class", "failure_traction_kpa", "crush_indentation_mm", "grip_traction_kpa",
 )
 """The object's constants (:func:`object_info`): in every reset info, and in every step's with ``"full"``."""
 

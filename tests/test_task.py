@@ -7,13 +7,13 @@ import math
 import numpy as np
 import pytest
 
-from pneunet_env import task
-from pneunet_env.config import EnvConfig, load_config
+from pneunet_env import PAPER_TASK, task
+from pneunet_env.config import load_config
 from pneunet_env.objects import GraspObject, stiffness_per_modulus
 from pneunet_env.physics.solver import Equilibrium
 from pneunet_env.physics.units import PAPER_MODULUS_PER_STIFFNESS_PA, object_stiffness_from_material
 
-CFG = EnvConfig()
+CFG = load_config(**PAPER_TASK)  # ranges and the crush-fraction rule: the paper's task
 TP = task.TaskParams.from_config(CFG)
 
 
@@ -73,7 +73,7 @@ def test_thresholds_in_physical_units():
 
 
 def test_sample_object_is_deterministic_and_within_ranges():
-    cfg = load_config(object_thickness_mm=[5.0, 15.0], object_density_kg_m3=[30.0, 1100.0])
+    cfg = load_config(object_thickness_mm=[5.0, 15.0], object_density_kg_m3=[30.0, 1100.0], **PAPER_TASK)
     a = task.sample_object(np.random.default_rng(3), cfg)
     b = task.sample_object(np.random.default_rng(3), cfg)
     assert a == b
@@ -94,7 +94,7 @@ def test_fixed_ranges_give_exactly_the_value():
 
 
 def test_pins_override_without_changing_the_other_draws():
-    cfg = load_config(object_thickness_mm=[5.0, 15.0])
+    cfg = load_config(object_thickness_mm=[5.0, 15.0], **PAPER_TASK)
     free = task.sample_object(np.random.default_rng(7), cfg)
     pinned = task.sample_object(np.random.default_rng(7), cfg, pinned={"object_shear_modulus_kpa": 2.0})
     assert pinned.shear_modulus_kpa == 2.0 and pinned.thickness_mm == free.thickness_mm

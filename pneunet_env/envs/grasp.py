@@ -143,6 +143,7 @@ class PneuNetGraspEnv(gym.Env):
         self.render_mode = render_mode
         self.info_level = info_level
         self._params = task.EnvParams.from_config(self.config)
+        self._class_names = task.class_names(self.config)
         self.action_space = spaces.Box(-1.0, 1.0, (1,), np.float32)
         self.observation_space = observation_space(self.config)
         self._state: task.EnvState | None = None
@@ -173,6 +174,7 @@ class PneuNetGraspEnv(gym.Env):
         self._warned = task.warn_if_beyond_convergence(obj, self._warned)
         self._state = state = task.reset_state(obj, self._params, task.newton_contact)
         self._static_info = task.object_info(obj, state.thresholds, self._params.task)
+        self._static_info["object_class"] = task.class_name(self._class_names, obj.class_id)
         obs = task.observation(state.command, state.eq.volume_change, self._params.task, self._params.volume_scale)
         info = task.build_info(state, self._params.task, None, self.info_level, self._static_info)
         if self.render_mode == "human":

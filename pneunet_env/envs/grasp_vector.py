@@ -28,7 +28,7 @@ from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
 from pneunet_env import task
-from pneunet_env.config import RANGE_FIELDS, EnvConfig, load_config
+from pneunet_env.config import EnvConfig, load_config
 from pneunet_env.envs.grasp import observation_space
 from pneunet_env.objects import GraspObject
 from pneunet_env.physics.batched import BACKENDS
@@ -350,6 +350,8 @@ class PneuNetGraspVectorEnv(VectorEnv):
         self.metadata = {**type(self).metadata, "autoreset_mode": self.autoreset_mode}
         self.config: EnvConfig = load_config(config, **overrides)
         self._params = task.EnvParams.from_config(self.config)
+        self.object_class_names: tuple[str, ...] = task.class_names(self.config)
+        """The catalogue classes, by the integer code of ``info["object_class"]`` (-1: drawn from ranges)."""
         self._contact = functools.partial(task.newton_contact_batch, backend=backend, parallel=parallel)
         self.single_action_space = spaces.Box(-1.0, 1.0, (1,), np.float32)
         self.single_observation_space = observation_space(self.config)
@@ -437,7 +439,7 @@ class PneuNetGraspVectorEnv(VectorEnv):
 
     def _draw(self, idx: np.ndarray, pins: dict[str, Any]) -> GraspObject:
         """Objects for sub-envs ``idx``, from each one's own stream (the vector env's only source of randomness)."""
-        u = self._streams.random(idx, len(RANGE_FIELDS))
+        u = self._streams.random(idx, task.draw_count(self.config))
         obj = task.object_from_uniforms(u, self.config, pinned=pins, batch=True)
         self._warned = task.warn_if_beyond_convergence(obj, self._warned)
         return obj

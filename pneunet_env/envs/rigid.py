@@ -65,6 +65,7 @@ from gymnasium import spaces
 from gymnasium.error import ResetNeeded
 
 from pneunet_env import task
+from pneunet_env.catalogue import class_table
 from pneunet_env.config import EnvConfig, load_config
 from pneunet_env.physics.params import check_positive
 from pneunet_env.physics.solver import STATUS_CONVERGED, Equilibrium
@@ -75,10 +76,16 @@ __all__ = ["RigidGraspEnv", "jaw_indentation", "default_jaw_travel_mm", "kinemat
 def default_jaw_travel_mm(config: EnvConfig) -> float:
     """``2 crush_fraction H_max``, capped at 90 % of the nominal object's radius (mm)."""
     radius_mm = 1e3 / _nominal_curvature_per_m(config)
+    if config.objects.from_catalogue:  # twice the deepest compliant layer of the classes drawn
+        h_max = float(np.max(class_table(config.objects.class_items).thickness_mm[1]))
+        return min(2.0 * h_max, 0.9 * radius_mm)
     return min(2.0 * config.task.crush_fraction * config.objects.object_thickness_mm[1], 0.9 * radius_mm)
 
 
 def _nominal_curvature_per_m(config: EnvConfig) -> float:
+    if config.objects.from_catalogue:  # the middle of the classes' radii: the jaw is blind to each object's size
+        r = class_table(config.objects.class_items).radius_mm
+        return 2e3 / (float(np.min(r[0])) + float(np.max(r[1])))
     lo, hi = config.objects.object_curvature_per_m
     return 0.5 * (lo + hi)
 
@@ -154,6 +161,7 @@ class RigidGraspEnv(gym.Env):
         jaw_task = base.task._replace(pressure_max=self.jaw_travel_mm, pressure_step=self.jaw_step_mm)
         self._params = base._replace(task=jaw_task, volume_scale=None)
         self._contact = functools.partial(kinematic_contact, nominal_curvature_per_m=nominal)
+        self._class_names = task.class_names(cfg)
         self.action_space = spaces.Box(-1.0, 1.0, (1,), np.float32)
         self.observation_space = spaces.Box(0.0, 1.0, (1,), np.float32)
         self._state: task.EnvState | None = None
@@ -166,6 +174,8 @@ class RigidGraspEnv(gym.Env):
 
     def _info(self, res: task.Step | None) -> dict[str, Any]:
         info = task.build_info(self._state, self._params.task, res, self.info_level)
+        if "object_class" in info:
+            info["object_class"] = task.class_name(self._class_names, int(info["object_class"]))
         info.update(jaw_closure_mm=self._state.command, jaw_travel_mm=self.jaw_travel_mm, gripper="rigid")
         return info
 

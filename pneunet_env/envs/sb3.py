@@ -32,6 +32,8 @@ import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices, VecEnvStepReturn
 
+from pneunet_env.task import class_name
+
 __all__ = ["SB3VecEnv"]
 
 
@@ -114,6 +116,11 @@ class SB3VecEnv(VecEnv):
                 mask = mask[idx]
             for j in np.flatnonzero(~mask).tolist():
                 del dicts[j][k]
+        if "object_class" in keys:  # per-env dicts read like a single env's: the class by name
+            names = self.env.unwrapped.object_class_names
+            for d in dicts:
+                if "object_class" in d:
+                    d["object_class"] = class_name(names, int(d["object_class"]))
         return dicts
 
     # ---- SB3 VecEnv API -------------------------------------------------------------------------------------

@@ -16,12 +16,12 @@ from agents.oracle import Oracle, feasible_stiffness, plan_target
 from agents.policies import BEST_RAMP_PATH, BEST_RIGID_PATH, make_policy, parse_spec
 from agents.scripted import LinearRamp, StepPolicy, load_ramp, save_ramp
 from agents.search import Candidate, best_candidate, search_ramp, strain_crush_fraction
-from pneunet_env import EnvConfig
+from pneunet_env import PAPER_TASK, load_config
 from pneunet_env.envs.rigid import RigidGraspEnv, default_jaw_travel_mm, jaw_indentation
 from pneunet_env.objects import GraspObject
 from pneunet_env.task import TaskParams, object_thresholds
 
-CFG = EnvConfig()
+CFG = load_config(**PAPER_TASK)  # these baselines' unit tests are on the paper's task (its 250 mm ring)
 SPACE = gym.spaces.Box(-1.0, 1.0, (1,), np.float32)
 
 
@@ -66,7 +66,7 @@ def test_scripted_episodes_repeat_exactly(spec):
 
 
 def test_linear_ramp_reaches_its_target_and_holds():
-    env = gym.make("PneuNetGrasp-v0")
+    env = gym.make("PneuNetGrasp-Paper-v0")
     pol = LinearRamp.from_kpa(50.0, 20)
     r = run_episode(env, pol, seed=0, options={"object_stiffness": 0.05}, record=True)
     p = np.array(r["commands"])
@@ -158,7 +158,7 @@ def test_oracle_plan_matches_the_window(k, feasible):
 
 @pytest.mark.parametrize("k, success", [(2e-3, True), (5e-2, True), (3e-4, False)])
 def test_oracle_episode_outcome_follows_its_plan(k, success):
-    env = gym.make("PneuNetGrasp-v0")
+    env = gym.make("PneuNetGrasp-Paper-v0")
     oracle = Oracle(CFG)
     r = run_episode(env, oracle, seed=0, options={"object_stiffness": k}, record=True)
     assert r["success"] is success
@@ -183,8 +183,8 @@ def test_rigid_env_passes_the_gymnasium_checker():
 
 
 def test_rigid_traction_is_k_delta_and_the_same_objects():
-    env = gym.make("RigidGrasp-v0")
-    penv = gym.make("PneuNetGrasp-v0")
+    env = gym.make("RigidGrasp-v0", **PAPER_TASK)
+    penv = gym.make("PneuNetGrasp-Paper-v0")
     for seed in range(5):
         _, info = env.reset(seed=seed)
         _, pinfo = penv.reset(seed=seed)
@@ -203,7 +203,7 @@ def test_rigid_traction_is_k_delta_and_the_same_objects():
 
 
 def test_rigid_crushes_past_the_thickness_and_slips_below_the_grip():
-    env = gym.make("RigidGrasp-v0")
+    env = gym.make("RigidGrasp-v0", **PAPER_TASK)
     too_deep = LinearRamp.from_kpa(CFG.task.max_pressure_kpa, 20)  # the full 20 mm travel: past H = 10 mm
     r = run_episode(env, too_deep, seed=0, options={"object_stiffness": 1e-2})
     assert r["damaged"] and not r["success"]
@@ -217,7 +217,7 @@ def test_rigid_size_offset():
     assert jaw_indentation(5.0, 4.0, 4.0) == pytest.approx(5.0)
     # a larger object (smaller curvature) is met earlier: 1/3.6 - 1/4 m = 27.8 mm more indentation
     assert jaw_indentation(5.0, 3.6, 4.0) == pytest.approx(5.0 + 1e3 / 3.6 - 250.0)
-    env = RigidGraspEnv(object_curvature_per_m=[3.6, 4.4])
+    env = RigidGraspEnv(object_curvature_per_m=[3.6, 4.4], **PAPER_TASK)
     _, info = env.reset(seed=3)
     assert env.unwrapped.nominal_curvature_per_m == pytest.approx(4.0)
     assert np.isfinite(info["indentation_mm"])

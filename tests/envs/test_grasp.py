@@ -189,7 +189,7 @@ def test_bad_actions_are_named(action, error, match):
 
 
 def test_20000_random_steps_converge_without_nan():
-    env = gym.make("PneuNetGrasp-v0", info_level="full", observe_volume=True)
+    env = gym.make("PneuNetGrasp-Paper-v0", info_level="full", observe_volume=True)
     env.action_space.seed(0)
     obs, info = env.reset(seed=0)
     episodes, snaps, contacts = 1, 0, 0
@@ -214,7 +214,7 @@ def test_20000_random_steps_converge_without_nan():
 
 
 def test_soft_object_traction_saturates_stiff_object_curvature_pinned():
-    env = gym.make("PneuNetGrasp-v0", info_level="full", terminate_on_damage=False, terminate_on_slip=False)
+    env = gym.make("PneuNetGrasp-Paper-v0", info_level="full", terminate_on_damage=False, terminate_on_slip=False)
     ramp = LinearRamp(1.0, 40)
 
     def path(k):
@@ -242,7 +242,7 @@ def test_soft_object_traction_saturates_stiff_object_curvature_pinned():
 
 
 def test_crushing_schedule_gets_the_damage_penalty_and_terminates():
-    env = gym.make("PneuNetGrasp-v0", info_level="full")
+    env = gym.make("PneuNetGrasp-Paper-v0", info_level="full")
     cfg = env.unwrapped.config
     traj = _episode(env, StepPolicy(1.0), options={"object_stiffness": 1e-4})
     _, reward, terminated, truncated, info = traj[-1]
@@ -358,7 +358,7 @@ def test_lean_info_keys_and_the_objects_constants_at_reset():
     full = gym.make("PneuNetGrasp-v0", info_level="full")
     _, info_r = full.reset(seed=3)
     _, _, _, _, info_f = full.step(np.array([1.0], np.float32))
-    assert len(info_f) == 44 and set(task.LEAN_KEYS) | set(task.OBJECT_KEYS) <= set(info_f)
+    assert len(info_f) == 45 and set(task.LEAN_KEYS) | set(task.OBJECT_KEYS) <= set(info_f)
     assert all(info_f[k] == info[k] for k in task.LEAN_KEYS)  # the lean keys are the full info's, unchanged
     with pytest.raises(ValueError, match="info_level"):
         gym.make("PneuNetGrasp-v0", info_level="everything")

@@ -20,13 +20,26 @@ from pneunet_env.physics._jit import HAVE_NUMBA
 # terminations (damage, slip) and time-limit truncations.
 SHORT = dict(squeeze_steps=8, hold_steps=8)
 VARIED = dict(SHORT, observe_volume=True, object_thickness_mm=[5.0, 15.0], object_curvature_per_m=[2.0, 8.0],
-              object_density_kg_m3=[300.0, 1200.0], object_failure_strain=[0.1, 0.5])
+              object_density_kg_m3=[300.0, 1200.0], object_failure_strain=[0.1, 0.5], use_case=None)
+CATALOGUE = dict(SHORT, observe_volume=True, use_case="lab_bench")  # every class of the lab bench, both regimes
 BACKENDS = ["numba", "numpy"] if HAVE_NUMBA else ["numpy"]
 RTOL, ATOL = 1e-10, 1e-12
 
 
+NAMES: tuple[str, ...] = ()  # the vector env's object_class_names, for comparing its class codes with names
+
+
 def _assert_same(a, b, where: str) -> None:
-    """Equal to 1e-10 (floats; relative, with a 1e-12 floor for round-off-level values), exactly otherwise."""
+    """Equal to 1e-10 (floats; relative, with a 1e-12 floor for round-off-level values), exactly otherwise.
+
+    ``object_class`` is a name in a single env and an integer code in the vector env (with its table of names):
+    codes are compared through :data:`NAMES`.
+    """
+    if "object_class" in where and np.asarray(b).dtype.kind in "iu" and np.asarray(a).dtype.kind in "UO":
+        b = np.vectorize(lambda c: task.class_name(NAMES, int(c)), otypes=[object])(np.asarray(b))
+        a = np.asarray(a, dtype=object)
+        assert a.shape == b.shape and all(x == y for x, y in zip(a.ravel(), b.ravel(), strict=True)), (where, a, b)
+        return
     if isinstance(a, dict):
         assert isinstance(b, dict) and set(a) == set(b), (where, set(a) ^ set(b))
         for k in a:
@@ -95,18 +108,21 @@ def test_vector_env_equals_n_single_envs_with_auto_resets(backend):
     assert ends >= 3 * n and terminations >= 5  # the run did exercise ends, resets and terminations
 
 
+@pytest.mark.parametrize("objects", ["ranges", "catalogue"])
 @pytest.mark.parametrize("mode", [AutoresetMode.SAME_STEP, AutoresetMode.NEXT_STEP])
 @pytest.mark.parametrize("backend", BACKENDS)
-def test_vector_env_is_the_sync_vector_env_of_single_envs(backend, mode):
+def test_vector_env_is_the_sync_vector_env_of_single_envs(backend, mode, objects):
     """Step for step, Gymnasium's SyncVectorEnv of single envs in the same autoreset mode, every key of the vector
-    info included, through many episode ends."""
+    info included, through many episode ends; objects from ranges and from the catalogue."""
+    global NAMES
     n, steps = 5, 120
-    kw = dict(VARIED, max_episode_steps=16)
+    kw = dict(VARIED if objects == "ranges" else CATALOGUE, max_episode_steps=16)
     ref = gym.make_vec("PneuNetGrasp-v0", num_envs=n, vectorization_mode="sync",
                        vector_kwargs={"autoreset_mode": mode}, **kw)
     extra = {} if mode is AutoresetMode.SAME_STEP else {"autoreset_mode": mode}
     vec = gym.make_vec("PneuNetGrasp-v0", num_envs=n, backend=backend, **kw, **extra)
     assert isinstance(vec.unwrapped, PneuNetGraspVectorEnv)
+    NAMES = vec.unwrapped.object_class_names
     assert vec.metadata["autoreset_mode"] is mode
     actions = np.random.default_rng(1).uniform(-1.3, 1.3, (steps, n, 1)).astype(np.float32)
     _assert_same(ref.reset(seed=3), vec.reset(seed=3), "reset")
@@ -387,7 +403,7 @@ def test_bad_arguments_raise():
 
 def test_batch_objects_equal_single_objects_without_a_loop(monkeypatch):
     cfg = load_config(**VARIED)
-    u = np.random.default_rng(3).random((5, 200))
+    u = np.random.default_rng(3).random((task.draw_count(cfg), 200))
     cases = [(None, [task.object_from_uniforms(u[:, i], cfg) for i in range(200)]),
              ({"object_stiffness": 1e-3},
               [task.sample_object(_Fixed(u[:, i]), cfg, pinned={"object_stiffness": 1e-3}) for i in range(200)])]

@@ -249,9 +249,9 @@ def test_solves_converge_up_to_the_measured_contact_ratio(c):
 def test_the_envs_warn_beyond_the_measured_contact_ratio():
     import gymnasium as gym
 
-    env = gym.make("PneuNetGrasp-v0")
+    env = gym.make("PneuNetGrasp-Paper-v0")
     with pytest.warns(UserWarning, match="measured to converge"):
         env.reset(seed=0, options={"object_stiffness": 10.0})  # 10 / 0.02^4 = 6e7
-    vec = gym.make_vec("PneuNetGrasp-v0", num_envs=2)
+    vec = gym.make_vec("PneuNetGrasp-Paper-v0", num_envs=2)
     with pytest.warns(UserWarning, match="measured to converge"):
         vec.reset(seed=0, options={"object_stiffness": np.array([1e-3, 10.0])})
