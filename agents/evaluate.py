@@ -92,6 +92,8 @@ def run_episode(env, policy, seed: int | None = None, options: dict[str, Any] | 
     out = {
         "stiffness": float(reset_info["object_stiffness"]),
         "shear_modulus_kpa": float(reset_info["object_shear_modulus_kpa"]),
+        "curvature": float(reset_info["object_curvature"]),
+        "object_class": str(reset_info.get("object_class", "ranges")),
         "success": bool(info.get("is_success", False)),
         "damaged": bool(info["damaged"]),
         "dropped": bool(info["dropped"]),

@@ -19,15 +19,26 @@ A policy maps an observation (or a batch) to an action in ``Box(-1, 1, (1,))``, 
 signature) and ``begin_episode(info)`` (called with ``reset``'s ``info``; only the oracle uses it).
 
 An SB3 model ``DIR/NAME.zip`` is loaded with the algorithm named in ``DIR/NAME.json`` (written by
-``pneunet-grasp train``; else inferred from the saved policy class) and the observation statistics of
-``DIR/NAME_vecnormalize.pkl`` (else ``DIR/vecnormalize.pkl``; none if neither exists). torch and
-stable-baselines3 are imported only for such a model.
+``pneunet-grasp train``; else inferred from the saved policy class) and the normalisation statistics of
+``DIR/NAME_vecnormalize.json`` (else ``DIR/vecnormalize.json``; none if neither exists): plain numbers
+(:class:`NormalizationStats`), read without ``pickle``. ``PATH.zip:vecnormalize=STATS,action=setpoint`` names
+them (and the action mode) explicitly. torch and stable-baselines3 are imported only for such a model.
+
+**Security: load only models you trust.** A model ``.zip`` is code: stable-baselines3 unpickles parts of it
+(``cloudpickle``), so loading one runs whatever its author put there. Statistics are never unpickled implicitly:
+a ``vecnormalize.pkl`` lying next to a model (as rl-zoo3 and SB3's ``VecNormalize.save`` write them) is ignored,
+with a warning, and is loaded only when its path is named explicitly (``SB3Policy(..., vecnormalize=PATH)``,
+``PATH.zip:vecnormalize=PATH.pkl``); :func:`convert_vecnormalize` turns such a pickle, once trusted, into the
+JSON form.
 """
 
 from __future__ import annotations
 
 import json
+import os
 import pickle
+import tempfile
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -37,15 +48,29 @@ import numpy as np
 
 from agents.scripted import LinearRamp, StepPolicy, load_ramp
 from pneunet_env.config import EnvConfig
+from pneunet_env.wrappers import setpoint_to_rate
 
 __all__ = ["PolicyEntry", "REGISTRY", "make_policy", "parse_spec", "SB3Policy", "BEST_RAMP_PATH", "BEST_RIGID_PATH",
-           "vecnormalize_path", "setpoint_to_rate", "ACTION_MODES"]
+           "vecnormalize_path", "setpoint_to_rate", "ACTION_MODES", "NormalizationStats", "RunningStats",
+           "convert_vecnormalize", "atomic_write_bytes", "stage_file"]
 
 AGENTS_DIR = Path(__file__).resolve().parent
 BEST_RAMP_PATH = AGENTS_DIR / "best_ramp.json"
-"""The ``best-ramp`` policy's parameters (written by ``python -m agents.search``)."""
+"""The ``best-ramp`` policy's parameters on the default task (written by ``python -m agents.search``)."""
 BEST_RIGID_PATH = AGENTS_DIR / "best_rigid.json"
-"""The ``rigid`` policy's parameters (written by ``python -m agents.search --gripper rigid``)."""
+"""The ``rigid`` policy's parameters on the default task (written by ``python -m agents.search --gripper rigid``)."""
+BEST_RAMP_PAPER_PATH = AGENTS_DIR / "best_ramp_paper.json"
+"""The same on the paper's task (``PneuNetGrasp-Paper-v0``: its ring, objects drawn from ranges)."""
+BEST_RIGID_PAPER_PATH = AGENTS_DIR / "best_rigid_paper.json"
+
+
+def tuned_path(config: EnvConfig, gripper: str = "pneunet") -> Path:
+    """The tuned schedule for the task ``config`` describes: the default task's (objects from the catalogue) or the
+    paper's (objects from ranges). Each was searched on its own task; a blind schedule is tuned to a distribution."""
+    paper = not config.objects.from_catalogue
+    if gripper == "rigid":
+        return BEST_RIGID_PAPER_PATH if paper else BEST_RIGID_PATH
+    return BEST_RAMP_PAPER_PATH if paper else BEST_RAMP_PATH
 
 PNEUNET_ENV = "PneuNetGrasp-v0"
 RIGID_ENV = "RigidGrasp-v0"
@@ -141,7 +166,7 @@ def _step(spec, params, config):
 
 
 def _best_ramp(spec, params, config):
-    path = Path(params.pop("path", BEST_RAMP_PATH))
+    path = Path(params.pop("path", tuned_path(config)))
     _check_empty(spec, params, "path")
     pol = load_ramp(path, config)
     label = f"best-ramp ({_describe(pol, config.task.max_pressure_kpa, 'kPa')})"
@@ -174,7 +199,7 @@ def _rigid(spec, params, config):
         pol = LinearRamp(t, n, config)
         _check_empty(spec, params, "target, target_mm, steps, travel_mm, path")
     else:
-        path = Path(params.pop("path", BEST_RIGID_PATH))
+        path = Path(params.pop("path", tuned_path(config, "rigid")))
         _check_empty(spec, params, "target, target_mm, steps, travel_mm, path")
         pol = _load_rigid(path, config, full)
     label = f"rigid gripper ({_describe(pol, full, 'mm')})"
@@ -202,17 +227,23 @@ REGISTRY: dict[str, Callable[[str, dict[str, str], EnvConfig], PolicyEntry]] = {
 
 
 def make_policy(spec: str, config: EnvConfig | None = None) -> PolicyEntry:
-    """The policy named by ``spec`` (a registry name with optional parameters, or a ``*.zip`` SB3 model).
+    """The policy named by ``spec`` (a registry name with optional parameters, or a ``*.zip`` SB3 model, optionally
+    ``PATH.zip:vecnormalize=STATS,action=setpoint``; a model is code: load only models you trust).
 
     Raises:
         ValueError: an unknown name, a bad parameter, or a missing model file (named).
     """
     config = EnvConfig() if config is None else config
-    if isinstance(spec, str) and spec.strip().endswith(".zip"):
-        path = Path(spec.strip())
+    if isinstance(spec, str) and (spec.strip().endswith(".zip") or ".zip:" in spec):
+        model, sep, rest = spec.strip().rpartition(".zip:") if ".zip:" in spec else (spec.strip()[:-4], "", "")
+        path = Path(model + ".zip")
+        params = parse_spec("model:" + rest)[1] if sep else {}
         if not path.is_file():
             raise ValueError(f"policy {spec!r}: no such model file")
-        pol = SB3Policy(path, config=config)
+        stats = params.pop("vecnormalize", None)
+        action = params.pop("action", None)
+        _check_empty(spec, params, "vecnormalize, action")
+        pol = SB3Policy(path, vecnormalize=stats, action=action, config=config)
         return PolicyEntry(spec, f"{pol.algo}, pressure only ({path.name})", pol)
     name, params = parse_spec(spec)
     if name not in REGISTRY:
@@ -225,39 +256,194 @@ def make_policy(spec: str, config: EnvConfig | None = None) -> PolicyEntry:
 # ---------------------------------------------------------------------------------------------
 
 
+STATS_SUFFIX = "_vecnormalize.json"
+
+
 def vecnormalize_path(model_path: str | Path) -> Path | None:
-    """``DIR/NAME_vecnormalize.pkl`` if it exists, else ``DIR/vecnormalize.pkl`` if it exists, else ``None``."""
+    """``DIR/NAME_vecnormalize.json`` if it exists, else ``DIR/vecnormalize.json`` if it exists, else ``None``.
+
+    Only the JSON statistics are looked up next to a model: a pickle is never loaded unless named explicitly.
+    """
     model_path = Path(model_path)
-    for cand in (model_path.with_name(model_path.stem + "_vecnormalize.pkl"),
-                 model_path.with_name("vecnormalize.pkl")):
+    for cand in (model_path.with_name(model_path.stem + STATS_SUFFIX), model_path.with_name("vecnormalize.json")):
         if cand.is_file():
             return cand
     return None
 
 
+def _stray_pickles(model_path: Path) -> list[Path]:
+    return [p for p in (model_path.with_name(model_path.stem + "_vecnormalize.pkl"),
+                        model_path.with_name("vecnormalize.pkl")) if p.is_file()]
+
+
 _ALGOS = ("PPO", "SAC", "TD3", "A2C", "DDPG")
 ACTION_MODES = ("rate", "setpoint")
 """How a trained agent's output drives the env: ``rate`` is the env's own action (the pressure change);
-``setpoint`` is a commanded pressure, followed by a rate-limited regulator (:func:`setpoint_to_rate`)."""
+``setpoint`` is a commanded pressure, followed by a rate-limited regulator (:func:`setpoint_to_rate`, the formula of
+:class:`pneunet_env.wrappers.PressureSetpoint`)."""
 
 
-def setpoint_to_rate(setpoint, pressure_fraction, step_fraction: float) -> np.ndarray:
-    """The env action that moves the pressure toward a commanded setpoint as fast as the env allows.
+# ---------------------------------------------------------------------------------------------
+# Normalisation statistics, as numbers
+# ---------------------------------------------------------------------------------------------
 
-    Args:
-        setpoint: the agent's output ``u`` in ``[-1, 1]`` (clipped), the target ``(u + 1)/2`` of ``p_max``.
-        pressure_fraction: the current ``p / p_max`` (the observation's first entry), same leading shape.
-        step_fraction: ``max_pressure_step_kpa / max_pressure_kpa``.
 
-    Returns:
-        ``clip(((u + 1)/2 - p) / step_fraction, -1, 1)``, float32, the shape of ``setpoint``.
+STATS_FORMAT = "pneunet_env/vecnormalize-stats/1"
 
-    This is a proportional pressure regulator with a rate limit: a function of the pressure and the command only,
-    so a policy using it still observes nothing but the pressure.
+
+def stage_file(final: str | Path, content: bytes | Path) -> Path:
+    """A temporary file beside ``final`` (same folder, so ``os.replace`` onto ``final`` is atomic) holding
+    ``content`` (bytes, or the bytes of the file at that path), flushed to disk, with ``final``'s permissions (a new
+    file's usual ones if ``final`` does not exist). The caller renames it into place or deletes it."""
+    final = Path(final)
+    final.parent.mkdir(parents=True, exist_ok=True)
+    fd, name = tempfile.mkstemp(dir=final.parent, prefix=f".{final.name}.", suffix=".tmp")
+    tmp = Path(name)
+    try:
+        with os.fdopen(fd, "wb") as out:
+            if isinstance(content, Path):
+                with open(content, "rb") as src:
+                    while chunk := src.read(1 << 20):
+                        out.write(chunk)
+            else:
+                out.write(content)
+            out.flush()
+            os.fsync(out.fileno())
+        os.chmod(tmp, final.stat().st_mode & 0o7777 if final.exists() else 0o666 & ~_umask())
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    return tmp
+
+
+def _umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
+    """Write ``data`` to ``path`` through a temporary file in the same folder and ``os.replace``: a reader (or a
+    failure half-way) sees the old file or the new one, never a truncated one."""
+    path = Path(path)
+    tmp = stage_file(path, data)
+    try:
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    return path
+
+
+@dataclass
+class RunningStats:
+    """A running mean and variance (SB3's ``RunningMeanStd``): float64 arrays (or scalars) and a count."""
+
+    mean: np.ndarray
+    var: np.ndarray
+    count: float
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"mean": np.asarray(self.mean, np.float64).tolist(), "var": np.asarray(self.var, np.float64).tolist(),
+                "count": float(self.count)}
+
+    @classmethod
+    def from_dict(cls, data: dict[str, Any]) -> RunningStats:
+        mean = np.asarray(data["mean"], dtype=np.float64)
+        var = np.asarray(data["var"], dtype=np.float64)
+        if mean.shape != var.shape:
+            raise ValueError(f"statistics: mean shape {mean.shape} != var shape {var.shape}")
+        return cls(mean, var, float(data["count"]))
+
+
+@dataclass
+class NormalizationStats:
+    """``VecNormalize``'s statistics and settings as plain numbers (JSON), read and written without ``pickle``.
+
+    ``normalize_obs`` is ``VecNormalize.normalize_obs``: ``clip((obs - mean) / sqrt(var + epsilon), +-clip_obs)``
+    as float32 when ``norm_obs`` (else the observation unchanged), bit for bit. Box observations only.
     """
-    u = np.clip(np.asarray(setpoint, dtype=np.float64), -1.0, 1.0)
-    p = np.asarray(pressure_fraction, dtype=np.float64).reshape(u.shape)
-    return np.clip((0.5 * (u + 1.0) - p) / step_fraction, -1.0, 1.0).astype(np.float32)
+
+    norm_obs: bool
+    norm_reward: bool
+    clip_obs: float
+    clip_reward: float
+    epsilon: float
+    gamma: float
+    obs_rms: RunningStats | None = None
+    ret_rms: RunningStats | None = None
+
+    def normalize_obs(self, obs) -> np.ndarray:
+        obs = np.asarray(obs)
+        if not self.norm_obs or self.obs_rms is None:
+            return obs.copy()
+        rms = self.obs_rms
+        return np.clip((obs - rms.mean) / np.sqrt(rms.var + self.epsilon), -self.clip_obs,
+                       self.clip_obs).astype(np.float32)
+
+    @classmethod
+    def from_vecnormalize(cls, vn) -> NormalizationStats:
+        """From a ``VecNormalize`` (or the object ``VecNormalize.save`` pickled)."""
+        state = vars(vn)  # an unpickled VecNormalize has no venv: getattr on a missing attribute would recurse
+        obs_rms, ret_rms = state.get("obs_rms"), state.get("ret_rms")
+        if isinstance(obs_rms, dict):
+            raise ValueError("dict observation statistics are not supported (PneuNetGrasp-v0's observation is a Box)")
+
+        def rms(r):
+            return None if r is None else RunningStats(np.array(r.mean, np.float64), np.array(r.var, np.float64),
+                                                       float(r.count))
+
+        return cls(norm_obs=bool(state["norm_obs"]), norm_reward=bool(state["norm_reward"]),
+                   clip_obs=float(state["clip_obs"]), clip_reward=float(state["clip_reward"]),
+                   epsilon=float(state["epsilon"]), gamma=float(state["gamma"]), obs_rms=rms(obs_rms),
+                   ret_rms=rms(ret_rms))
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"format": STATS_FORMAT, "norm_obs": self.norm_obs, "norm_reward": self.norm_reward,
+                "clip_obs": self.clip_obs, "clip_reward": self.clip_reward, "epsilon": self.epsilon,
+                "gamma": self.gamma, "obs_rms": None if self.obs_rms is None else self.obs_rms.to_dict(),
+                "ret_rms": None if self.ret_rms is None else self.ret_rms.to_dict()}
+
+    @classmethod
+    def from_dict(cls, data: Any, source: str = "statistics") -> NormalizationStats:
+        if not isinstance(data, dict) or data.get("format") != STATS_FORMAT:
+            raise ValueError(f"{source}: not a normalisation statistics file (format {STATS_FORMAT!r})")
+        try:
+            return cls(norm_obs=bool(data["norm_obs"]), norm_reward=bool(data["norm_reward"]),
+                       clip_obs=float(data["clip_obs"]), clip_reward=float(data["clip_reward"]),
+                       epsilon=float(data["epsilon"]), gamma=float(data["gamma"]),
+                       obs_rms=None if data.get("obs_rms") is None else RunningStats.from_dict(data["obs_rms"]),
+                       ret_rms=None if data.get("ret_rms") is None else RunningStats.from_dict(data["ret_rms"]))
+        except (KeyError, TypeError, ValueError) as exc:
+            raise ValueError(f"{source}: malformed statistics ({exc})") from None
+
+    def save(self, path: str | Path) -> Path:
+        """Write the JSON (atomically: a temporary file in the same folder, then ``os.replace``)."""
+        return atomic_write_bytes(path, (json.dumps(self.to_dict(), indent=1) + "\n").encode())
+
+    @classmethod
+    def load(cls, path: str | Path) -> NormalizationStats:
+        """Read the JSON written by :meth:`save` (no code runs)."""
+        path = Path(path)
+        try:
+            data = json.loads(path.read_text())
+        except (OSError, json.JSONDecodeError) as exc:
+            raise ValueError(f"cannot read statistics {str(path)!r}: {exc}") from None
+        return cls.from_dict(data, str(path))
+
+
+def load_pickled_vecnormalize(path: str | Path):
+    """Unpickle a ``VecNormalize`` file. **Runs code from the file**: call it only on a path you trust."""
+    with open(path, "rb") as fh:
+        return pickle.load(fh)
+
+
+def convert_vecnormalize(pickle_path: str | Path, json_path: str | Path) -> Path:
+    """A ``VecNormalize`` pickle (SB3's ``VecNormalize.save``, rl-zoo3's ``vecnormalize.pkl``) -> the JSON form.
+
+    Unpickles ``pickle_path``, which runs code from it: convert only files you trust.
+    """
+    return NormalizationStats.from_vecnormalize(load_pickled_vecnormalize(pickle_path)).save(json_path)
 
 
 def _model_meta(path: Path) -> dict[str, Any]:
@@ -290,9 +476,11 @@ class SB3Policy:
     """A trained stable-baselines3 model as a policy: normalises observations with its saved statistics.
 
     Args:
-        path: the model ``.zip``.
+        path: the model ``.zip``. **It is code** (SB3 unpickles parts of it): load only models you trust.
         deterministic: act with the policy's mean (default) rather than a sample.
-        vecnormalize: the ``VecNormalize`` pickle (default: :func:`vecnormalize_path`).
+        vecnormalize: the normalisation statistics: ``None`` (default) finds the JSON next to the model
+            (:func:`vecnormalize_path`); a ``.json`` path reads that file; any other path is unpickled as a
+            ``VecNormalize`` (it runs code: name only a pickle you trust); ``False``: none.
         action: ``"rate"`` or ``"setpoint"`` (:data:`ACTION_MODES`); default: the ``action`` of the model's
             metadata JSON (``pneunet-grasp train --export`` writes it), else ``"rate"``.
         config: the env's config (the setpoint regulator's step); the defaults if ``None``.
@@ -300,7 +488,7 @@ class SB3Policy:
 
     blind = True
 
-    def __init__(self, path: str | Path, deterministic: bool = True, vecnormalize: str | Path | None = None,
+    def __init__(self, path: str | Path, deterministic: bool = True, vecnormalize: str | Path | bool | None = None,
                  action: str | None = None, config: EnvConfig | None = None) -> None:
         import stable_baselines3 as sb3
         import torch
@@ -317,12 +505,23 @@ class SB3Policy:
         self.step_fraction = config.task.max_pressure_step_kpa / config.task.max_pressure_kpa
         self.model = getattr(sb3, self.algo).load(self.path, device="cpu")
         self.deterministic = deterministic
-        vn = vecnormalize_path(self.path) if vecnormalize is None else Path(vecnormalize)
-        self.vecnormalize_path = vn
         self._norm = None
+        if vecnormalize is False:
+            vn = None
+        elif vecnormalize is None or vecnormalize is True:
+            vn = vecnormalize_path(self.path)
+            if vn is None and (stray := _stray_pickles(self.path)):
+                warnings.warn(f"model {str(path)!r}: not loading {', '.join(map(str, stray))} (a pickle runs code "
+                              "when loaded); name it explicitly (vecnormalize=PATH) if you trust it, or convert it "
+                              "with agents.policies.convert_vecnormalize", stacklevel=2)
+        else:
+            vn = Path(vecnormalize)
+        self.vecnormalize_path = vn
         if vn is not None:
-            with open(vn, "rb") as fh:
-                self._norm = pickle.load(fh)
+            if vn.suffix == ".json":
+                self._norm = NormalizationStats.load(vn)
+            else:  # named explicitly by the caller
+                self._norm = load_pickled_vecnormalize(vn)
 
     def normalize(self, observation) -> np.ndarray:
         obs = np.asarray(observation, dtype=np.float32)

@@ -35,6 +35,7 @@ import numpy as np
 
 from agents.evaluate import parse_overrides, run_episode
 from agents.scripted import LinearRamp, save_ramp
+from pneunet_env import PAPER_TASK
 from pneunet_env.cli.progress import add_progress_argument
 from pneunet_env.cli.progress import progress as progress_bar
 from pneunet_env.config import EnvConfig, load_config
@@ -223,7 +224,7 @@ def strain_crush_fraction(config: EnvConfig | None = None) -> float:
     ``delta kappa_obj``. At the middle of the config's ranges: ``eps_f / (H kappa_obj)`` (7.5 at the paper's
     object: 0.3 / (10 mm x 4 /m)).
     """
-    c = EnvConfig() if config is None else config
+    c = load_config(**PAPER_TASK) if config is None else config  # the paper task's ranges
     mid = lambda r: 0.5 * (r[0] + r[1])  # noqa: E731
     o = c.objects
     return mid(o.object_failure_strain) / (mid(o.object_thickness_mm) * 1e-3 * mid(o.object_curvature_per_m))
@@ -265,7 +266,7 @@ def sensitivity_study(out: Path, settings=SENSITIVITY_SETTINGS, n_objects: int =
     results = []
     for key, desc, overrides in settings:
         t0 = time.perf_counter()
-        config = load_config(None, **overrides)
+        config = load_config(None, **{**PAPER_TASK, **overrides})  # a study of the paper's task
         best_p, _ = search_ramp(config, "pneunet", n_objects, seed, coarse, durations, 0.01, progress)
         best_r, _ = search_ramp(config, "rigid", n_objects, seed, coarse, durations, 0.01, progress)
         travel = default_jaw_travel_mm(config)
@@ -401,7 +402,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from agents.policies import BEST_RAMP_PATH, BEST_RIGID_PATH
+    from agents.policies import tuned_path
 
     if args.sensitivity:
         out = Path("docs/img/results") if args.out is None else args.out
@@ -418,7 +419,7 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as exc:
         raise SystemExit(f"agents.search: {exc}") from None
     elapsed = time.perf_counter() - t0
-    out = args.out or (BEST_RIGID_PATH if args.gripper == "rigid" else BEST_RAMP_PATH)
+    out = args.out or tuned_path(config, args.gripper)
     save_best(best, out, config, args.gripper, args.objects, args.seed,
               {**({"config": str(args.config)} if args.config else {}), **overrides}, elapsed)
     s = best.summary()

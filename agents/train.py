@@ -1,37 +1,53 @@
 """``pneunet-grasp train --config configs/train/ppo.yaml``: train a stable-baselines3 agent on ``PneuNetGrasp-v0``.
 
-The config is an rl-zoo3 hyperparameter file: a mapping from the env id to its hyperparameters
-(``policy``, ``n_envs``, ``n_timesteps``, ``normalize``, ``policy_kwargs`` and the algorithm's own keyword
-arguments: ``n_steps``, ``batch_size``, ``learning_rate``, ...). ``policy_kwargs`` and ``normalize`` may be
-YAML mappings or rl-zoo3's strings (``"dict(net_arch=[64, 64])"``, ``"{'norm_obs': False}"``), read without
-``eval``. Keys of this package, beside rl-zoo3's:
+The config is two files. ``ppo.yaml`` is a plain rl-zoo3 hyperparameter file, so rl-zoo3 trains from it as it is::
 
-==================  ==============================================================================
-``algo``            ``ppo``, ``sac``, ``td3``, ``a2c`` (default: the file's name, ``ppo.yaml`` -> PPO)
-``action``          ``rate`` (the env's action: the pressure change) or ``setpoint`` (the agent commands a
-                    pressure, ``(u + 1)/2`` of ``p_max``, and a rate-limited regulator follows it:
-                    :func:`agents.policies.setpoint_to_rate`; the agent still observes the pressure only)
-``vec_env``         ``batched`` (the batched env, :mod:`pneunet_env.envs.sb3`) or ``dummy`` (SB3's
-                    ``DummyVecEnv`` over ``gym.make``); ``batched`` falls back to ``dummy`` with a warning
-                    if :mod:`pneunet_env.envs.sb3` is missing
-``env_kwargs``      keyword arguments of ``gym.make("PneuNetGrasp-v0", ...)`` (config keys)
-``seed``            the run's seed (training envs ``seed + i``, evaluation env ``seed + 10_000``)
-``eval_freq``       timesteps between evaluations (``EvalCallback``, ``is_success`` logged)
-``n_eval_episodes`` episodes per evaluation, on objects drawn with a fixed seed (the same each time)
-``n_eval_envs``     envs of the evaluation ``VecEnv``
-``checkpoint_freq`` timesteps between checkpoints (model and ``VecNormalize`` statistics)
-``max_train_minutes`` wall-clock budget of one invocation (training stops cleanly when it is spent)
-``torch_threads``   ``torch.set_num_threads`` (default 2: the CI machine has two cores)
-==================  ==============================================================================
+    python -m rl_zoo3.train --algo ppo --env PneuNetGrasp-v0 --gym-packages pneunet_env \
+        --conf-file configs/train/ppo.yaml
 
-The run directory (``--run-dir``, default ``runs/<algo>``) receives ``config.yaml`` (the resolved
-hyperparameters), ``run.json`` (seeds, versions, timesteps, wall time, each invocation), ``monitor/``,
-``evaluations.npz`` (EvalCallback's log: rewards, lengths, successes), ``best_model.zip`` with
-``best_model_vecnormalize.pkl``, ``checkpoints/``, ``final_model.zip`` with ``final_model_vecnormalize.pkl``, and
-``training.png`` (success rate and return of each evaluation, with matplotlib).
-``--resume`` continues from the newest checkpoint (or ``--resume PATH.zip``) up to ``n_timesteps``.
-``--export agents/models/ppo_pneunet`` copies the best model, its statistics and a metadata JSON there: the
-policy registry (:mod:`agents.policies`) then loads ``agents/models/ppo_pneunet.zip`` by path.
+It maps the env id to rl-zoo3's keys (``policy``, ``n_envs``, ``n_timesteps``, ``normalize``, ``policy_kwargs``,
+``env_kwargs``, ``env_wrapper``, ``vec_env_wrapper``, ``callback``, ``frame_stack``) and the algorithm's own keyword
+arguments (``n_steps``, ``batch_size``, ``learning_rate``, ...; ``lin_<x>`` is rl-zoo3's linear schedule).
+``policy_kwargs`` and ``normalize`` may be YAML mappings or rl-zoo3's strings (``"dict(net_arch=[64, 64])"``,
+``"{'norm_obs': False}"``), read here without ``eval``. ``env_wrapper``, ``vec_env_wrapper`` and ``callback`` name
+classes (``module.Class``, a ``{module.Class: {kwargs}}`` mapping, or a list of those), imported when training
+starts. The pressure-setpoint action is ``env_wrapper: pneunet_env.wrappers.PressureSetpoint`` (the agent commands
+a pressure, a rate-limited regulator follows it: :mod:`pneunet_env.wrappers`); on the batched env, which has no
+per-env wrappers, its ``VecEnv`` form ``PressureSetpointVecEnv`` is used instead (an ``env_wrapper`` without a
+``VecEnv`` form makes the run fall back to the ``dummy`` vec env, with a warning).
+
+The keys only this command knows (rl-zoo3 would pass them to the algorithm, which rejects them) live beside it, in
+``ppo.project.yaml`` (``<name>.project.yaml`` next to ``<name>.yaml``; optional; the same ``env id -> keys``
+layout; unknown keys raise):
+
+=====================  ==============================================================================
+``algo``               ``ppo``, ``sac``, ``td3``, ``a2c`` (default: the file's name, ``ppo.yaml`` -> PPO)
+``vec_env``            ``batched`` (the batched env, :mod:`pneunet_env.envs.sb3`) or ``dummy`` (SB3's
+                       ``DummyVecEnv`` over ``gym.make``); ``batched`` falls back to ``dummy`` with a warning
+                       if :mod:`pneunet_env.envs.sb3` is missing
+``seed``               the run's seed (training envs ``seed + i``, evaluation env ``seed + 10_000``)
+``eval_freq``          timesteps between evaluations (``EvalCallback``, ``is_success`` logged)
+``n_eval_episodes``    episodes per evaluation, on objects drawn with a fixed seed (the same each time)
+``n_eval_envs``        envs of the evaluation ``VecEnv``
+``checkpoint_freq``    timesteps between checkpoints (model and ``VecNormalize`` statistics)
+``max_train_minutes``  wall-clock budget of one invocation (training stops cleanly when it is spent)
+``torch_threads``      ``torch.set_num_threads`` (default 2: the CI machine has two cores)
+=====================  ==============================================================================
+
+An older single-file config (these keys, and ``action: setpoint|rate``, inside the rl-zoo3 file) still loads, with
+a ``FutureWarning``: ``action: setpoint`` reads as ``env_wrapper: pneunet_env.wrappers.PressureSetpoint``.
+
+The run directory (``--run-dir``, default ``runs/<algo>``) receives ``config.yaml`` and ``config.project.yaml``
+(the resolved hyperparameters, in the same two-file form: ``--config RUN_DIR/config.yaml`` trains the same run
+again), ``run.json`` (seeds, versions, timesteps, wall time, each invocation), ``monitor/``, ``evaluations.npz``
+(EvalCallback's log: rewards, lengths, successes), ``best_model.zip`` with ``best_model_vecnormalize.json`` (the
+statistics as numbers) and ``.pkl`` (SB3's pickle), ``checkpoints/``, ``final_model.zip`` with
+``final_model_vecnormalize.json`` and ``.pkl``, and ``training.png`` (success rate and return of each evaluation,
+with matplotlib). ``--resume`` continues from the newest checkpoint (or ``--resume PATH.zip``) up to
+``n_timesteps``. ``--export agents/models/ppo_pneunet`` copies the best model, its statistics (JSON) and a metadata
+JSON there, each file written to a temporary name in that folder and then renamed over the old one (a failure
+leaves the previous export whole): the policy registry (:mod:`agents.policies`) then loads
+``agents/models/ppo_pneunet.zip`` by path.
 
 torch and stable-baselines3 are imported only here (``pip install -e ".[rl]"``).
 """
@@ -40,29 +56,37 @@ from __future__ import annotations
 
 import argparse
 import ast
+import importlib
 import json
+import os
 import platform
 import re
-import shutil
 import time
 import warnings
 from pathlib import Path
 from typing import Any
 
-from agents.policies import ACTION_MODES, setpoint_to_rate
+from agents.policies import STATS_SUFFIX, NormalizationStats, load_pickled_vecnormalize, stage_file
 
 ENV_ID = "PneuNetGrasp-v0"
 ALGOS = ("ppo", "sac", "td3", "a2c")
-OUR_KEYS = ("algo", "action", "vec_env", "env_kwargs", "seed", "eval_freq", "n_eval_episodes", "n_eval_envs",
-            "checkpoint_freq", "max_train_minutes", "torch_threads")
-ZOO_KEYS = ("policy", "n_envs", "n_timesteps", "normalize", "policy_kwargs")
+PROJECT_KEYS = ("algo", "vec_env", "seed", "eval_freq", "n_eval_episodes", "n_eval_envs", "checkpoint_freq",
+                "max_train_minutes", "torch_threads")
+"""The keys of ``<name>.project.yaml``: this command's own, unknown to rl-zoo3."""
+OUR_KEYS = PROJECT_KEYS
+ZOO_KEYS = ("policy", "n_envs", "n_timesteps", "normalize", "policy_kwargs", "env_kwargs", "env_wrapper",
+            "vec_env_wrapper", "callback", "frame_stack")
+"""rl-zoo3's keys of the main file that are not the algorithm's keyword arguments."""
+ZOO_UNSUPPORTED = ("monitor_kwargs", "noise_type", "noise_std")
+SETPOINT_WRAPPER = "pneunet_env.wrappers.PressureSetpoint"
 DEFAULTS: dict[str, Any] = {
-    "action": "rate", "vec_env": "batched", "env_kwargs": {}, "seed": 0, "eval_freq": 20_000, "n_eval_episodes": 100,
+    "vec_env": "batched", "env_kwargs": {}, "seed": 0, "eval_freq": 20_000, "n_eval_episodes": 100,
     "n_eval_envs": 4, "checkpoint_freq": 50_000, "max_train_minutes": 10.0, "torch_threads": 2,
     "policy": "MlpPolicy", "n_envs": 8, "n_timesteps": 300_000, "normalize": False, "policy_kwargs": {},
 }
 
-__all__ = ["load_train_config", "parse_literal", "train", "add_arguments", "run"]
+__all__ = ["load_train_config", "project_config_path", "parse_literal", "train", "add_arguments", "run",
+           "make_vec_env", "export", "action_mode", "LinearSchedule"]
 
 
 # ---------------------------------------------------------------------------------------------
@@ -104,23 +128,103 @@ def _literal(name: str, node: ast.AST, source: str) -> Any:
                          "nn.<Activation> are read)") from None
 
 
-def load_train_config(path: str | Path, env_id: str = ENV_ID) -> dict[str, Any]:
-    """Read an rl-zoo3-style YAML file: the hyperparameters of ``env_id``, with defaults filled in.
+def project_config_path(path: str | Path) -> Path:
+    """``DIR/NAME.project.yaml`` for ``DIR/NAME.yaml``: the keys of this command that rl-zoo3 does not know."""
+    path = Path(path)
+    return path.with_name(f"{path.stem}.project{path.suffix or '.yaml'}")
 
-    Raises:
-        ValueError: a missing file or env entry, an unknown algorithm, a non-positive count, or a malformed value.
-    """
+
+def _read_entry(path: Path, env_id: str, what: str) -> dict[str, Any]:
     import yaml
 
-    path = Path(path)
     try:
         data = yaml.safe_load(path.read_text())
     except OSError as exc:
-        raise ValueError(f"cannot read train config {str(path)!r}: {exc}") from None
+        raise ValueError(f"cannot read {what} {str(path)!r}: {exc}") from None
+    except yaml.YAMLError as exc:
+        raise ValueError(f"{what} {str(path)!r} is not valid YAML: {exc}") from None
     if not isinstance(data, dict) or env_id not in data or not isinstance(data[env_id], dict):
-        raise ValueError(f"train config {str(path)!r} must map {env_id!r} to its hyperparameters (rl-zoo3 style)")
-    hp = {**DEFAULTS, **data[env_id]}
-    algo = str(hp.get("algo") or path.stem.split("_")[0]).lower()
+        raise ValueError(f"{what} {str(path)!r} must map {env_id!r} to its hyperparameters (rl-zoo3 style)")
+    return dict(data[env_id])
+
+
+def _class_specs(key: str, value: Any) -> list[tuple[str, dict[str, Any]]]:
+    """rl-zoo3's ``env_wrapper``/``vec_env_wrapper``/``callback`` value -> ``[(dotted name, kwargs), ...]``."""
+    if value is None:
+        return []
+    items = value if isinstance(value, list) else [value]
+    out = []
+    for item in items:
+        if isinstance(item, dict) and len(item) == 1:
+            name, kwargs = next(iter(item.items()))
+            kwargs = {} if kwargs is None else kwargs
+        else:
+            name, kwargs = item, {}
+        if not isinstance(name, str) or "." not in name or not isinstance(kwargs, dict):
+            raise ValueError(f"train config key {key!r}: expected 'module.Class', {{'module.Class': {{kwargs}}}} or "
+                             f"a list of those, got {item!r}")
+        out.append((name, dict(kwargs)))
+    return out
+
+
+def _import_class(key: str, name: str):
+    module, _, attr = name.rpartition(".")
+    try:
+        return getattr(importlib.import_module(module), attr)
+    except (ImportError, AttributeError) as exc:
+        raise ValueError(f"train config key {key!r}: cannot import {name!r} ({exc})") from None
+
+
+def action_mode(hp: dict[str, Any]) -> str:
+    """``"setpoint"`` if the config drives the env through :mod:`pneunet_env.wrappers`' setpoint wrapper, else
+    ``"rate"`` (the env's own action): what :class:`agents.policies.SB3Policy` must apply to the model's output."""
+    names = [n for key in ("env_wrapper", "vec_env_wrapper") for n, _ in _class_specs(key, hp.get(key))]
+    return "setpoint" if any(n in (SETPOINT_WRAPPER, SETPOINT_WRAPPER + "VecEnv") for n in names) else "rate"
+
+
+def load_train_config(path: str | Path, env_id: str = ENV_ID, project: str | Path | None = None) -> dict[str, Any]:
+    """Read an rl-zoo3 hyperparameter file and its ``<name>.project.yaml``: one flat dict, defaults filled in.
+
+    Args:
+        path: the rl-zoo3 file (``configs/train/ppo.yaml``).
+        env_id: its entry.
+        project: the project file (default :func:`project_config_path`; a missing default is no error).
+
+    Raises:
+        ValueError: a missing file or env entry, an unknown algorithm or project key, a key in both files, a
+            non-positive count, or a malformed value.
+    """
+    path = Path(path)
+    main = _read_entry(path, env_id, "train config")
+    legacy = sorted(k for k in main if k in PROJECT_KEYS or k == "action")
+    proj_path = project_config_path(path) if project is None else Path(project)
+    ours: dict[str, Any] = {}
+    if project is not None or proj_path.is_file():
+        ours = _read_entry(proj_path, env_id, "project config")
+        unknown = sorted(set(ours) - set(PROJECT_KEYS))
+        if unknown:
+            raise ValueError(f"project config {str(proj_path)!r}: unknown key(s) {unknown}; valid: "
+                             f"{', '.join(PROJECT_KEYS)} (rl-zoo3's and the algorithm's keys go in {path.name})")
+        both = sorted(set(ours) & set(main))
+        if both:
+            raise ValueError(f"train config key(s) {both} in both {str(path)!r} and {str(proj_path)!r}")
+    if legacy:
+        warnings.warn(f"train config {str(path)!r}: key(s) {legacy} belong in {proj_path.name} (rl-zoo3 passes "
+                      "unknown keys to the algorithm); 'action: setpoint' is 'env_wrapper: "
+                      f"{SETPOINT_WRAPPER}'", FutureWarning, stacklevel=2)
+    unsupported = sorted(k for k in main if k in ZOO_UNSUPPORTED)
+    if unsupported:
+        raise ValueError(f"train config {str(path)!r}: rl-zoo3 key(s) {unsupported} are not supported by "
+                         "pneunet-grasp train (python -m rl_zoo3.train reads them)")
+    hp = {**DEFAULTS, **main, **ours}
+    action = hp.pop("action", None)
+    if action is not None:
+        if action not in ("rate", "setpoint"):
+            raise ValueError(f"train config key 'action' must be 'rate' or 'setpoint', got {action!r}")
+        if action == "setpoint" and action_mode(hp) != "setpoint":
+            hp["env_wrapper"] = ([*_raw_list(hp["env_wrapper"]), SETPOINT_WRAPPER] if hp.get("env_wrapper")
+                                 else SETPOINT_WRAPPER)
+    algo = str(hp.get("algo") or path.stem.split("_")[0].split(".")[0]).lower()
     if algo not in ALGOS:
         raise ValueError(f"train config {str(path)!r}: unknown algo {algo!r}; valid: {', '.join(ALGOS)}")
     hp["algo"] = algo
@@ -132,19 +236,55 @@ def load_train_config(path: str | Path, env_id: str = ENV_ID) -> dict[str, Any]:
     hp["policy_kwargs"] = parse_literal("policy_kwargs", hp["policy_kwargs"]) or {}
     if not isinstance(hp["policy_kwargs"], dict):
         raise ValueError(f"train config key 'policy_kwargs' must be a mapping, got {hp['policy_kwargs']!r}")
-    if hp["action"] not in ACTION_MODES:
-        raise ValueError(f"train config key 'action' must be one of {ACTION_MODES}, got {hp['action']!r}")
     if hp["vec_env"] not in ("batched", "dummy"):
         raise ValueError(f"train config key 'vec_env' must be 'batched' or 'dummy', got {hp['vec_env']!r}")
     if not isinstance(hp["env_kwargs"], dict):
         raise ValueError(f"train config key 'env_kwargs' must be a mapping, got {hp['env_kwargs']!r}")
+    for key in ("env_wrapper", "vec_env_wrapper", "callback"):
+        _class_specs(key, hp.get(key))
+    if hp.get("frame_stack") is not None:
+        hp["frame_stack"] = _count("frame_stack", hp["frame_stack"])
+    for key in ("learning_rate", "clip_range", "clip_range_vf"):
+        if isinstance(hp.get(key), str) and not re.fullmatch(r"lin_[-+0-9.eE]+", hp[key]):
+            raise ValueError(f"train config key {key!r}: a number or rl-zoo3's 'lin_<initial value>', "
+                             f"got {hp[key]!r}")
     for key in ("n_envs", "n_timesteps", "eval_freq", "n_eval_episodes", "n_eval_envs", "checkpoint_freq",
                 "torch_threads"):
         hp[key] = _count(key, hp[key])
+    hp["seed"] = int(hp["seed"])
     hp["max_train_minutes"] = float(hp["max_train_minutes"])
     if not hp["max_train_minutes"] > 0:
         raise ValueError(f"train config key 'max_train_minutes' must be > 0, got {hp['max_train_minutes']!r}")
     return hp
+
+
+def _raw_list(value: Any) -> list[Any]:
+    return [] if value is None else list(value) if isinstance(value, list) else [value]
+
+
+class LinearSchedule:
+    """rl-zoo3's ``lin_<x>``: ``x`` times the remaining progress (1 at the start, 0 at the end)."""
+
+    def __init__(self, initial_value: float) -> None:
+        self.initial_value = float(initial_value)
+
+    def __call__(self, progress_remaining: float) -> float:
+        return progress_remaining * self.initial_value
+
+    def __repr__(self) -> str:
+        return f"LinearSchedule({self.initial_value})"
+
+
+def _algo_kwargs(hp: dict[str, Any]) -> dict[str, Any]:
+    """The algorithm's keyword arguments: the main file's keys that are neither rl-zoo3's nor the project's."""
+    skip = set(PROJECT_KEYS) | set(ZOO_KEYS)
+    out = {k: v for k, v in hp.items() if k not in skip}
+    for key in ("learning_rate", "clip_range", "clip_range_vf"):
+        if isinstance(out.get(key), str):
+            out[key] = LinearSchedule(float(out[key][4:]))
+    if isinstance(out.get("train_freq"), list):
+        out["train_freq"] = tuple(out["train_freq"])
+    return out
 
 
 def _count(key: str, value: Any) -> int:
@@ -184,68 +324,66 @@ def batched_available() -> bool:
     return True
 
 
-def _setpoint_wrapper(venv, step_fraction: float):
-    """``venv`` driven by pressure setpoints (``hp["action"] == "setpoint"``): a ``VecEnvWrapper``."""
-    import numpy as np
-    from stable_baselines3.common.vec_env import VecEnvWrapper
-
-    class SetpointVecEnv(VecEnvWrapper):
-        """The agent's action is a pressure setpoint; the env receives the rate-limited change toward it."""
-
-        def __init__(self, venv):
-            super().__init__(venv)
-            self._p = np.zeros((venv.num_envs, 1), np.float32)
-
-        def reset(self):
-            obs = self.venv.reset()
-            self._p = np.asarray(obs, np.float32)[:, :1].copy()
-            return obs
-
-        def step_async(self, actions):
-            self.venv.step_async(setpoint_to_rate(actions, self._p, step_fraction))
-
-        def step_wait(self):
-            obs, rewards, dones, infos = self.venv.step_wait()
-            self._p = np.asarray(obs, np.float32)[:, :1].copy()  # an ended episode's env is already reset
-            return obs, rewards, dones, infos
-
-    return SetpointVecEnv(venv)
+def _wrapper_classes(hp: dict[str, Any], key: str) -> list[tuple[Any, dict[str, Any]]]:
+    return [(_import_class(key, name), kwargs) for name, kwargs in _class_specs(key, hp.get(key))]
 
 
-def make_vec_env(hp: dict[str, Any], n_envs: int, seed: int, monitor_dir: Path | None):
-    """The training or evaluation ``VecEnv`` (``hp["vec_env"]``), monitored, seeded, with the action mode."""
-    venv = _make_base_vec_env(hp, n_envs, seed, monitor_dir)
-    if hp["action"] == "setpoint":
-        from pneunet_env.config import load_config
-
-        cfg = load_config(None, **hp["env_kwargs"])
-        venv = _setpoint_wrapper(venv, cfg.task.max_pressure_step_kpa / cfg.task.max_pressure_kpa)
-    return venv
-
-
-def _make_base_vec_env(hp: dict[str, Any], n_envs: int, seed: int, monitor_dir: Path | None):
-    from stable_baselines3.common.env_util import make_vec_env as sb3_make_vec_env
-    from stable_baselines3.common.vec_env import DummyVecEnv, VecMonitor
-
+def make_vec_env(hp: dict[str, Any], n_envs: int, seed: int, monitor_dir: Path | None, wrap: bool = True):
+    """The training or evaluation ``VecEnv`` (``hp["vec_env"]``), monitored, seeded, with the config's
+    ``env_wrapper`` and ``vec_env_wrapper`` (``wrap=False``: the env's own actions; ``VecNormalize`` and
+    ``frame_stack`` are applied by :func:`train`)."""
     import pneunet_env  # noqa: F401  (registers the env)
 
+    env_wrappers = _wrapper_classes(hp, "env_wrapper") if wrap else []
     kind = hp["vec_env"]
     if kind == "batched" and not batched_available():
         warnings.warn("vec_env: batched needs pneunet_env.envs.sb3, which is missing; using dummy", stacklevel=2)
         kind = "dummy"
+    if kind == "batched" and env_wrappers:
+        vec_forms = [getattr(cls, "vec_env_form", None) for cls, _ in env_wrappers]
+        if any(f is None for f in vec_forms):
+            missing = [f"{cls.__module__}.{cls.__qualname__}" for (cls, _), f in zip(env_wrappers, vec_forms,
+                                                                                    strict=True) if f is None]
+            warnings.warn(f"vec_env: batched cannot apply the per-env wrapper(s) {missing} (no VecEnv form); "
+                          "using dummy", stacklevel=2)
+            kind = "dummy"
     if kind == "batched":
-        from pneunet_env.envs.sb3 import SB3VecEnv
+        venv = _make_batched(hp, n_envs, seed, monitor_dir)
+        for cls, kwargs in env_wrappers:  # each env wrapper's VecEnv form, in the same order
+            venv = getattr(importlib.import_module(cls.__module__), cls.vec_env_form)(venv, **kwargs)
+    else:
+        venv = _make_dummy(hp, n_envs, seed, monitor_dir, env_wrappers)
+    for cls, kwargs in (_wrapper_classes(hp, "vec_env_wrapper") if wrap else []):
+        venv = cls(venv, **kwargs)
+    return venv
 
-        venv = SB3VecEnv(num_envs=n_envs, **hp["env_kwargs"])
-        if monitor_dir is not None:
-            monitor_dir.mkdir(parents=True, exist_ok=True)
-        venv = VecMonitor(venv, filename=None if monitor_dir is None else str(monitor_dir / "batched"))
-        venv.seed(seed)
-        return venv
+
+def _make_batched(hp: dict[str, Any], n_envs: int, seed: int, monitor_dir: Path | None):
+    from stable_baselines3.common.vec_env import VecMonitor
+
+    from pneunet_env.envs.sb3 import SB3VecEnv
+
+    venv = SB3VecEnv(num_envs=n_envs, **hp["env_kwargs"])
+    if monitor_dir is not None:
+        monitor_dir.mkdir(parents=True, exist_ok=True)
+    venv = VecMonitor(venv, filename=None if monitor_dir is None else str(monitor_dir / "batched"))
+    venv.seed(seed)
+    return venv
+
+
+def _make_dummy(hp: dict[str, Any], n_envs: int, seed: int, monitor_dir: Path | None, env_wrappers):
+    from stable_baselines3.common.env_util import make_vec_env as sb3_make_vec_env
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    def wrap_env(env):
+        for cls, kwargs in env_wrappers:
+            env = cls(env, **kwargs)
+        return env
+
     if monitor_dir is not None:
         monitor_dir.mkdir(parents=True, exist_ok=True)
     return sb3_make_vec_env(ENV_ID, n_envs=n_envs, seed=seed, vec_env_cls=DummyVecEnv,
-                            env_kwargs=dict(hp["env_kwargs"]),
+                            env_kwargs=dict(hp["env_kwargs"]), wrapper_class=wrap_env if env_wrappers else None,
                             monitor_dir=None if monitor_dir is None else str(monitor_dir))
 
 
@@ -258,12 +396,10 @@ def _callbacks(hp, run_dir: Path, eval_env, seed: int, deadline: float, resuming
     from stable_baselines3.common.callbacks import BaseCallback, CheckpointCallback, EvalCallback
 
     class SaveVecNormalize(BaseCallback):
-        """On a new best model: save the VecNormalize statistics next to it."""
+        """On a new best model: save the VecNormalize statistics next to it (JSON, and SB3's pickle)."""
 
         def _on_step(self) -> bool:
-            vn = self.model.get_vec_normalize_env()
-            if vn is not None:
-                vn.save(str(run_dir / "best_model_vecnormalize.pkl"))
+            _save_stats(self.model, run_dir / "best_model")
             return True
 
     class SeededEval(EvalCallback):
@@ -309,7 +445,18 @@ def _callbacks(hp, run_dir: Path, eval_env, seed: int, deadline: float, resuming
                             verbose=1)
     checkpoints = CheckpointCallback(max(1, hp["checkpoint_freq"] // n), str(run_dir / "checkpoints"),
                                      name_prefix="model", save_vecnormalize=True)
-    return [evaluation, checkpoints, WallClock(verbose=1)]
+    # the config's own callbacks (rl-zoo3's `callback` key), after ours
+    extra = [cls(**kwargs) for cls, kwargs in _wrapper_classes(hp, "callback")]
+    return [evaluation, checkpoints, WallClock(verbose=1), *extra]
+
+
+def _save_stats(model, stem: Path) -> None:
+    """``STEM_vecnormalize.json`` (numbers, what :mod:`agents.policies` loads) and ``STEM_vecnormalize.pkl``
+    (SB3's ``VecNormalize.save``) for a model trained on a ``VecNormalize``; nothing otherwise."""
+    vn = model.get_vec_normalize_env()
+    if vn is not None:
+        NormalizationStats.from_vecnormalize(vn).save(stem.with_name(stem.name + STATS_SUFFIX))
+        vn.save(str(stem.with_name(stem.name + "_vecnormalize.pkl")))
 
 
 # ---------------------------------------------------------------------------------------------
@@ -357,7 +504,7 @@ def train(hp: dict[str, Any], run_dir: Path, resume: Path | None = None, progres
     import torch
     import yaml
     from stable_baselines3.common.utils import set_random_seed
-    from stable_baselines3.common.vec_env import VecNormalize
+    from stable_baselines3.common.vec_env import VecFrameStack, VecNormalize
 
     t0 = time.monotonic()
     deadline = t0 + 60.0 * hp["max_train_minutes"]
@@ -371,7 +518,7 @@ def train(hp: dict[str, Any], run_dir: Path, resume: Path | None = None, progres
     norm = hp["normalize"]
     stats = None
     if resume is not None:
-        stats = _checkpoint_stats(resume)
+        stats = _checkpoint_stats(resume)  # SB3's pickle, in the run's own checkpoints (as trusted as the model)
     if norm:
         if stats is not None:
             venv = VecNormalize.load(str(stats), venv)
@@ -379,8 +526,10 @@ def train(hp: dict[str, Any], run_dir: Path, resume: Path | None = None, progres
         else:
             venv = VecNormalize(venv, gamma=float(hp.get("gamma", 0.99)), **norm)
         eval_env = VecNormalize(eval_env, training=False, norm_obs=norm.get("norm_obs", True), norm_reward=False)
-    zoo_and_ours = set(OUR_KEYS) | set(ZOO_KEYS)
-    algo_kwargs = {k: v for k, v in hp.items() if k not in zoo_and_ours}
+    if hp.get("frame_stack") is not None:
+        venv = VecFrameStack(venv, hp["frame_stack"])
+        eval_env = VecFrameStack(eval_env, hp["frame_stack"])
+    algo_kwargs = _algo_kwargs(hp)
     if resume is not None:
         model = algo_cls.load(str(resume), env=venv, device="cpu")
         done = int(model.num_timesteps)
@@ -389,22 +538,23 @@ def train(hp: dict[str, Any], run_dir: Path, resume: Path | None = None, progres
                          policy_kwargs=_resolve_policy_kwargs(hp["policy_kwargs"]), **algo_kwargs)
         done = 0
     remaining = max(0, hp["n_timesteps"] - done)
-    (run_dir / "config.yaml").write_text(yaml.safe_dump({ENV_ID: hp}, sort_keys=False))
+    zoo = {k: v for k, v in hp.items() if k not in PROJECT_KEYS}
+    (run_dir / "config.yaml").write_text(yaml.safe_dump({ENV_ID: zoo}, sort_keys=False))
+    (run_dir / "config.project.yaml").write_text(yaml.safe_dump({ENV_ID: {k: hp[k] for k in PROJECT_KEYS}},
+                                                                sort_keys=False))
     record_path = run_dir / "run.json"
     record = json.loads(record_path.read_text()) if (resume is not None and record_path.is_file()) else {}
     record.setdefault("invocations", [])
     record.update(algo=hp["algo"], env_id=ENV_ID, seed=seed, seeds={"train_envs": f"{seed} + i",
                   "eval_env": seed + 10_000, "torch_numpy_random": seed}, config_path=config_path,
-                  hyperparameters=hp, versions=_versions(), vec_env=type(venv.unwrapped if hasattr(venv, "unwrapped")
-                                                                          else venv).__name__)
+                  hyperparameters=hp, action=action_mode(hp), versions=_versions(),
+                  vec_env=type(venv.unwrapped if hasattr(venv, "unwrapped") else venv).__name__)
     if remaining > 0:
         callbacks = _callbacks(hp, run_dir, eval_env, seed + 10_000, deadline, resuming=resume is not None)
         model.learn(total_timesteps=remaining, callback=callbacks, progress_bar=progress,
                     reset_num_timesteps=resume is None)
     model.save(str(run_dir / "final_model.zip"))
-    vn = model.get_vec_normalize_env()
-    if vn is not None:
-        vn.save(str(run_dir / "final_model_vecnormalize.pkl"))
+    _save_stats(model, run_dir / "final_model")
     wall = time.monotonic() - t0
     evals = run_dir / "evaluations.npz"
     best = {}
@@ -446,7 +596,7 @@ def reference_success(hp: dict[str, Any], seed: int, spec: str = "best-ramp") ->
         policy = make_policy(spec, load_config(None, **hp["env_kwargs"])).policy
     except ValueError:
         return None
-    venv = make_vec_env({**hp, "action": "rate"}, hp["n_eval_envs"], seed, None)
+    venv = make_vec_env(hp, hp["n_eval_envs"], seed, None, wrap=False)  # the env's own action
     venv.seed(seed)
     successes: list[bool] = []
 
@@ -512,29 +662,58 @@ def plot_training(run_dir: Path, path: Path | None = None, reference: float | No
 
 
 def export(run_dir: Path, dest: Path, record: dict[str, Any]) -> Path:
-    """Copy the best model (else the final one), its statistics and a metadata JSON to ``dest.{zip,json}``."""
-    src = run_dir / "best_model.zip"
-    stats = run_dir / "best_model_vecnormalize.pkl"
+    """Copy the best model (else the final one), its statistics and a metadata JSON to ``dest.zip``,
+    ``dest_vecnormalize.json`` and ``dest.json``.
+
+    Each file is replaced atomically: every new file is first written in full (and flushed) to a temporary file in
+    ``dest``'s folder, and only then are they renamed over the old ones (``os.replace``), so a failure while writing
+    (a full disk, an interrupt) leaves the previous export whole and no temporary file behind. A statistics file of
+    an earlier export is removed only when the new model has none, after the new model is in place, so a model is
+    never paired with stale statistics.
+    """
+    src, stem = run_dir / "best_model.zip", run_dir / "best_model"
     model_timesteps = record["best_eval"].get("timesteps")
     if not src.is_file():
-        src, stats = run_dir / "final_model.zip", run_dir / "final_model_vecnormalize.pkl"
+        src, stem = run_dir / "final_model.zip", run_dir / "final_model"
         model_timesteps = record["timesteps"]
-    dest.parent.mkdir(parents=True, exist_ok=True)
-    zip_path = dest.with_suffix(".zip")
-    shutil.copyfile(src, zip_path)
-    stats_dest = dest.with_name(dest.name + "_vecnormalize.pkl")
-    if stats.is_file():
-        shutil.copyfile(stats, stats_dest)
-    elif stats_dest.exists():
-        stats_dest.unlink()
-    meta = {"algo": record["algo"], "action": record["hyperparameters"]["action"], "env_id": record["env_id"],
+    stats = _run_stats(stem)
+    hyper = record["hyperparameters"]
+    meta = {"algo": record["algo"], "action": record.get("action") or action_mode(hyper), "env_id": record["env_id"],
             "source": str(src), "seed": record["seed"], "model_timesteps": model_timesteps,
             "timesteps": record["timesteps"], "total_wall_s": record["total_wall_s"], "best_eval": record["best_eval"],
             "best_ramp_eval_success_rate": record.get("best_ramp_eval_success_rate"),
-            "hyperparameters": record["hyperparameters"], "versions": record["versions"],
-            "reproduce": record.get("command")}
-    dest.with_suffix(".json").write_text(json.dumps(meta, indent=1, default=str) + "\n")
+            "hyperparameters": hyper, "versions": record["versions"], "reproduce": record.get("command")}
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    zip_path = dest.with_suffix(".zip")
+    stats_dest = dest.with_name(dest.name + STATS_SUFFIX)
+    outputs: list[tuple[Path, bytes | Path]] = [(zip_path, src)]
+    if stats is not None:
+        outputs.append((stats_dest, (json.dumps(stats.to_dict(), indent=1) + "\n").encode()))
+    outputs.append((dest.with_suffix(".json"), (json.dumps(meta, indent=1, default=str) + "\n").encode()))
+    staged: list[tuple[Path, Path]] = []
+    try:
+        for final, content in outputs:
+            staged.append((stage_file(final, content), final))
+        for tmp, final in staged:
+            os.replace(tmp, final)
+    finally:
+        for tmp, _ in staged:
+            tmp.unlink(missing_ok=True)
+    if stats is None:
+        stats_dest.unlink(missing_ok=True)
     return zip_path
+
+
+def _run_stats(stem: Path) -> NormalizationStats | None:
+    """The statistics saved beside a model of the run (JSON; a run of an older version has only SB3's pickle,
+    which is read: it is the run's own output, in the folder of the model that is unpickled as well)."""
+    js = stem.with_name(stem.name + STATS_SUFFIX)
+    if js.is_file():
+        return NormalizationStats.load(js)
+    pkl = stem.with_name(stem.name + "_vecnormalize.pkl")
+    if pkl.is_file():
+        return NormalizationStats.from_vecnormalize(load_pickled_vecnormalize(pkl))
+    return None
 
 
 # ---------------------------------------------------------------------------------------------
@@ -543,7 +722,9 @@ def export(run_dir: Path, dest: Path, record: dict[str, Any]) -> Path:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--config", required=True, help="rl-zoo3-style YAML (configs/train/ppo.yaml, sac.yaml)")
+    parser.add_argument("--config", required=True,
+                        help="rl-zoo3 hyperparameter YAML (configs/train/ppo.yaml, sac.yaml); this command's own keys "
+                             "are read from NAME.project.yaml beside it")
     parser.add_argument("--run-dir", type=Path, default=None, help="output directory (default runs/<algo>)")
     parser.add_argument("--resume", nargs="?", const="latest", default=None, metavar="CHECKPOINT",
                         help="resume from CHECKPOINT.zip, or (no value) from the newest checkpoint of --run-dir")
@@ -556,7 +737,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--max-minutes", type=float, default=None, help="override max_train_minutes")
     parser.add_argument("--vec-env", choices=("batched", "dummy"), default=None, help="override vec_env")
     parser.add_argument("--export", type=Path, default=None, metavar="PATH_STEM",
-                        help="copy the best model to PATH_STEM.zip (+ _vecnormalize.pkl, .json), "
+                        help="copy the best model to PATH_STEM.zip (+ _vecnormalize.json, .json), "
                              "e.g. agents/models/ppo_pneunet")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 

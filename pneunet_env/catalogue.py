@@ -274,6 +274,8 @@ def load_catalogue(path: str | Path | None = None) -> dict[str, ObjectClass]:
     Reads the packaged ``objects.yaml`` unless ``path`` is given. The whole file is validated (classes and use
     cases); ``ValueError`` names the class (or use case) and the field at fault.
     """
+    if path is None:
+        return dict(_packaged_catalogue())
     raw, label = _load_raw(path)
     classes = _classes(raw, label)
     _use_cases(raw, label, classes)  # validated with the classes: a bad use case is a bad file
@@ -282,7 +284,15 @@ def load_catalogue(path: str | Path | None = None) -> dict[str, ObjectClass]:
 
 def load_use_cases(path: str | Path | None = None) -> dict[str, UseCase]:
     """The catalogue's use cases, ``{name: UseCase}`` (validated against its classes)."""
+    if path is None:
+        return dict(_packaged_use_cases())
     raw, label = _load_raw(path)
+    return _use_cases(raw, label, _classes(raw, label))[0]
+
+
+@functools.lru_cache(maxsize=1)
+def _packaged_use_cases() -> dict[str, UseCase]:
+    raw, label = _load_raw(None)
     return _use_cases(raw, label, _classes(raw, label))[0]
 
 
@@ -297,6 +307,8 @@ def use_case_weights(name: str | None = None, path: str | Path | None = None) ->
 
     Only classes inside the annulus model carry weight; ``KeyError`` if there is no such use case.
     """
+    if path is None:  # the packaged file does not change: read and validate it once
+        return dict(_packaged_weights(name))
     raw, label = _load_raw(path)
     cases, default = _use_cases(raw, label, _classes(raw, label))
     key = default if name is None else name
@@ -305,6 +317,25 @@ def use_case_weights(name: str | None = None, path: str | Path | None = None) ->
     weights = cases[key].weights
     total = sum(weights.values())
     return {cls: w / total for cls, w in weights.items()}
+
+
+@functools.lru_cache(maxsize=16)
+def _packaged_weights(name: str | None) -> tuple[tuple[str, float], ...]:
+    raw, label = _load_raw(None)
+    cases, default = _use_cases(raw, label, _classes(raw, label))
+    key = default if name is None else name
+    if key not in cases:
+        raise KeyError(f"no use case {key!r} in {label}; known: {sorted(cases)}")
+    total = sum(cases[key].weights.values())
+    return tuple((cls, w / total) for cls, w in cases[key].weights.items())
+
+
+@functools.lru_cache(maxsize=1)
+def _packaged_catalogue() -> dict[str, ObjectClass]:
+    raw, label = _load_raw(None)
+    classes = _classes(raw, label)
+    _use_cases(raw, label, classes)
+    return classes
 
 
 def stiffness_range(cls: ObjectClass, width_mm: float = 5.0, scale_modulus_kpa: float = 50.0) -> tuple[float, float]:

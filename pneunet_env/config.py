@@ -96,7 +96,7 @@ class ObjectConfig:
         """Whether objects are drawn from the catalogue's classes (else from the ranges)."""
         return self.use_case is not None or self.class_weights is not None
 
-    @property
+    @cached_property
     def class_items(self) -> tuple[tuple[str, float], ...]:
         """``((class, weight), ...)`` of the catalogue draw (``class_weights``, else the use case's)."""
         if self.class_weights is not None:
@@ -285,10 +285,15 @@ class EnvConfig:
                 raise ValueError(f"config section {section!r} must be a {cls.__name__}, got "
                                  f"{type(getattr(self, section)).__name__}")
         c_hi = self.objects.object_curvature_per_m[1]
-        if not self.objects.from_catalogue and self.actuator.width_mm * 1e-3 * c_hi >= math.pi:
+        if self.objects.from_catalogue:  # the smallest object the classes allow
+            from pneunet_env.catalogue import class_table
+
+            c_hi = 1e3 / float(min(class_table(self.objects.class_items).radius_mm[0]))
+        if self.actuator.width_mm * 1e-3 * c_hi >= math.pi:
+            source = "the catalogue's classes" if self.objects.from_catalogue else "config key 'object_curvature_per_m'"
             raise ValueError(
-                f"config key 'object_curvature_per_m' (up to {c_hi!r} /m) gives w kappa_obj >= pi for "
-                f"width_mm = {self.actuator.width_mm!r}"
+                f"{source} (curvature up to {c_hi:g} /m) give w kappa_obj >= pi for config key "
+                f"'width_mm' = {self.actuator.width_mm!r}: the actuator's cell is wider than the object's arc allows"
             )
         try:  # the dimensionless actuator validates the geometry (a cavity must remain)
             _ = self.actuator_params

@@ -56,7 +56,8 @@ import pneunet_env.cli.demo
 
 model = agents.evaluate.DEFAULT_MODEL
 vecnorm = agents.policies.vecnormalize_path(model)
-data = [agents.policies.BEST_RAMP_PATH, agents.policies.BEST_RIGID_PATH, model, model.with_suffix(".json")]
+data = [agents.policies.BEST_RAMP_PATH, agents.policies.BEST_RIGID_PATH, agents.policies.BEST_RAMP_PAPER_PATH,
+        model, model.with_suffix(".json")]
 print(json.dumps({
     "purelib": sysconfig.get_paths()["purelib"],
     "pneunet_env": pneunet_env.__file__,

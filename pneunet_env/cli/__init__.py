@@ -29,6 +29,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "evaluate": ("agents.evaluate", "evaluate policies over a stiffness grid (table, JSON, PNGs)"),
     "train": ("agents.train", "train an SB3 agent from a YAML config"),
     "search": ("agents.search", "tune the blind best-ramp (or rigid) schedule; --sensitivity runs the threshold study"),
+    "map": ("agents.maps", "chart success over object modulus x radius: oracle, best blind ramp, rigid jaw, "
+            "with the regime boundary"),
 }
 
 # group -> one-line help; a group's sub-commands are the COMMANDS named "GROUP SUB"

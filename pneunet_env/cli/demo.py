@@ -1,7 +1,12 @@
-"""``pneunet-grasp demo``: the main job. The best blind pressure ramp against objects from gels to elastomers,
-with the oracle (which knows each object) and a blind rigid gripper beside it: success, damage and slip rates
-by object stiffness.
+"""``pneunet-grasp demo``: the main job. The best blind pressure ramp against real objects, with the oracle (which
+knows each object) and a blind rigid gripper beside it: success by regime and by object class, policy by policy.
 
+**The default task** (``--task default``): ``--objects`` objects drawn by ``PneuNetGrasp-v0`` itself (the kitchen
+use case of the object catalogue: apple, kiwifruit, soft cheese, gelatin), the same seeds for every policy. Each
+object's regime is read off the mechanics (:mod:`pneunet_env.physics.regimes`: force-controlled when it yields
+more than half of the free actuator's curvature beyond its surface at 60 kPa, position-controlled otherwise).
+
+**The paper's task** (``--task paper``, ``PneuNetGrasp-Paper-v0``): its 250 mm ring, by object stiffness:
 The stiffness axis ``k~ = k_obj w/mu`` is cut into log-spaced bins (default: the four decades from 1e-5 to
 1e-1). Each episode draws its ``k~`` log-uniformly inside its bin (from a generator seeded by ``--seed`` and
 the bin), pins it with ``reset(options={"object_stiffness": k})``, and runs each policy on the same objects:
@@ -34,6 +39,10 @@ DEFAULT_POLICIES = ("best-ramp", "oracle", "rigid")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--task", choices=("default", "paper"), default="default",
+                        help="default: objects drawn from the catalogue (by regime and class); paper: the paper's "
+                             "250 mm ring, by stiffness bin")
+    parser.add_argument("--objects", type=int, default=100, help="objects drawn (default task; default 100)")
     parser.add_argument("--policy", action="append", default=None, metavar="NAME",
                         help="policies to run (repeatable; default best-ramp, oracle, rigid; see agents.policies)")
     parser.add_argument("--targets-kpa", type=float, nargs="+", default=[],
@@ -54,15 +63,16 @@ def run(args: argparse.Namespace) -> int:
     from agents.evaluate import SOFT_MAX, STIFF_MIN, run_episode
     from agents.oracle import feasible_stiffness
     from agents.policies import make_policy
+    from pneunet_env import PAPER_TASK
     from pneunet_env.config import load_config
     from pneunet_env.objects import stiffness_per_modulus
 
-    if args.bins < 1 or args.episodes < 1 or args.ramp_steps < 1:
-        raise SystemExit("--bins, --episodes and --ramp-steps must be >= 1")
+    if args.bins < 1 or args.episodes < 1 or args.ramp_steps < 1 or args.objects < 1:
+        raise SystemExit("--bins, --episodes, --objects and --ramp-steps must be >= 1")
     if not 0.0 < args.k_min < args.k_max:
         raise SystemExit(f"need 0 < --k-min < --k-max, got {args.k_min} and {args.k_max}")
     try:
-        cfg = load_config(args.config)
+        cfg = load_config(args.config, **(PAPER_TASK if args.task == "paper" else {}))
         specs = list(args.policy or DEFAULT_POLICIES)
         for t in args.targets_kpa:
             if not 0.0 <= t <= cfg.task.max_pressure_kpa:
@@ -71,6 +81,8 @@ def run(args: argparse.Namespace) -> int:
         entries = [make_policy(s, cfg) for s in specs]
     except ValueError as exc:
         raise SystemExit(f"pneunet-grasp demo: {exc}") from None
+    if args.task == "default":
+        return _run_distribution(args, cfg, entries)
     edges = np.logspace(math.log10(args.k_min), math.log10(args.k_max), args.bins + 1)
     draws = [edges[b] * (edges[b + 1] / edges[b]) ** np.random.default_rng([args.seed, b]).random(args.episodes)
              for b in range(args.bins)]
@@ -158,3 +170,67 @@ def _outcome(rs) -> str:
     d = np.mean([r["damaged"] for r in rs])
     sl = np.mean([r["dropped"] for r in rs])
     return f"{s:.0%} (d{d * 100:.0f} s{sl * 100:.0f})"
+
+
+def _run_distribution(args: argparse.Namespace, cfg, entries) -> int:
+    """The default task: objects drawn by the env; success by regime and by class, policy by policy."""
+    from agents.evaluate import HELD_OUT_SEED, run_episode
+    from pneunet_env.physics.regimes import REGIMES, regime
+
+    # held-out objects: not the seeds the blind schedules were searched on (agents.search uses seed * 1000003 + i)
+    seeds = [HELD_OUT_SEED + args.seed * 1_000_003 + i for i in range(args.objects)]
+    t0 = time.perf_counter()
+    bar = progress(total=len(entries) * len(seeds), desc="demo", unit="episode", enabled=args.progress)
+    results: dict[str, list[dict]] = {}
+    for entry in entries:
+        env = entry.make_env(cfg)
+        rs = []
+        for s in seeds:
+            r = run_episode(env, entry.policy, seed=s)
+            rs.append(r)
+            bar.update()
+        env.close()
+        results[entry.name] = rs
+    bar.close()
+    first = results[entries[0].name]
+    reg = regime([r["stiffness"] for r in first], [r["curvature"] for r in first], cfg.pressure_max,
+                 cfg.actuator_params, cfg.solver)
+    classes = [r["object_class"] for r in first]
+    elapsed = time.perf_counter() - t0
+    print(f"PneuNetGrasp-v0 demo: {len(seeds)} objects drawn by the env (use case {cfg.objects.use_case!r}, damage "
+          f"rule {cfg.task.damage_rule}), the same for every policy; {cfg.task.squeeze_steps} squeeze + "
+          f"{cfg.task.hold_steps} hold steps")
+    print("regime at 60 kPa, from the mechanics: force-controlled (the object yields) or position-controlled "
+          "(it blocks the actuator)\n")
+    cols = [(REGIMES[0], reg == 0), (REGIMES[1], reg == 1), ("all", np.ones(len(reg), bool))]
+    print(f"{'policy':>16}" + "".join(f"  {name + f' ({int(m.sum())})':>26}" for name, m in cols))
+    summary = {}
+    for e in entries:
+        ok = np.array([r["success"] for r in results[e.name]])
+        cells = [_rate_cell(ok, m) for _, m in cols]
+        summary[e.name] = {name: (float(ok[m].mean()) if m.any() else math.nan) for name, m in cols}
+        print(f"{e.name:>16}" + "".join(f"  {c:>26}" for c in cells))
+    print("\nby object class (share of draws, share force-controlled), success:")
+    names = list(dict.fromkeys(classes))
+    print(f"{'class':>14}  {'draws':>5}  {'force':>5}" + "".join(f"  {e.name[:12]:>12}" for e in entries))
+    cls = np.array(classes)
+    for n in names:
+        m = cls == n
+        line = f"{n:>14}  {m.mean():5.0%}  {np.mean(reg[m] == 0):5.0%}"
+        for e in entries:
+            ok = np.array([r["success"] for r in results[e.name]])
+            line += f"  {ok[m].mean():12.0%}"
+        print(line)
+    print("\n" + "; ".join(f"{e.name}: {e.label}" for e in entries))
+    print(f"\n{len(entries) * len(seeds)} episodes in {elapsed:.1f} s")
+    if args.json is not None:
+        args.json.parent.mkdir(parents=True, exist_ok=True)
+        args.json.write_text(json.dumps({"task": "default", "use_case": cfg.objects.use_case, "summary": summary,
+                                         "regime": reg.tolist(), "classes": classes,
+                                         "episodes": {k: v for k, v in results.items()}}, indent=1))
+        print(f"wrote {args.json}")
+    return 0
+
+
+def _rate_cell(ok: np.ndarray, mask: np.ndarray) -> str:
+    return "-" if not mask.any() else f"{ok[mask].mean():.0%}"

@@ -111,7 +111,8 @@ class PhysicalActuator:
         except ValueError as exc:
             msg = str(exc)
             named = [phys for dim, phys in _PHYSICAL_NAMES.items() if dim in msg.split(" (")[0] or dim + " " in msg]
-            raise ValueError(f"{', '.join(named) or 'actuator'}: {msg}") from None
+            raise ValueError(f"{', '.join(named) or 'actuator'} (relative to width_mm = {self.width_mm:g}): {msg}") \
+                from None
 
     @property
     def scales(self) -> Scales:

@@ -13,7 +13,7 @@ from gymnasium.utils.env_checker import check_env
 import pneunet_env  # noqa: F401  (registers PneuNetGrasp-v0)
 from agents.evaluate import run_episode
 from agents.oracle import Oracle, feasible_stiffness, plan_target
-from agents.policies import BEST_RAMP_PATH, BEST_RIGID_PATH, make_policy, parse_spec
+from agents.policies import BEST_RAMP_PAPER_PATH, BEST_RIGID_PAPER_PATH, make_policy, parse_spec
 from agents.scripted import LinearRamp, StepPolicy, load_ramp, save_ramp
 from agents.search import Candidate, best_candidate, search_ramp, strain_crush_fraction
 from pneunet_env import PAPER_TASK, load_config
@@ -83,14 +83,14 @@ def test_step_policy_is_rate_limited_by_the_action():
 
 
 def test_best_ramp_loads_its_saved_parameters():
-    data = json.loads(BEST_RAMP_PATH.read_text())
-    entry = make_policy("best-ramp")
+    data = json.loads(BEST_RAMP_PAPER_PATH.read_text())
+    entry = make_policy("best-ramp", CFG)
     assert isinstance(entry.policy, LinearRamp)
     assert entry.policy.target == data["target"] and entry.policy.n_steps == data["n_steps"]
     assert data["target_kpa"] == pytest.approx(data["target"] * CFG.task.max_pressure_kpa)
     assert data["score"]["success_rate"] >= 0.0 and data["search"]["objects"] >= 1
-    rigid_data = json.loads(BEST_RIGID_PATH.read_text())
-    r = make_policy("rigid")
+    rigid_data = json.loads(BEST_RIGID_PAPER_PATH.read_text())
+    r = make_policy("rigid", CFG)
     assert r.env_id == "RigidGrasp-v0" and r.command == "jaw"
     assert r.policy.target * default_jaw_travel_mm(CFG) == pytest.approx(rigid_data["target_mm"])
 

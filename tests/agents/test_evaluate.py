@@ -113,9 +113,23 @@ def test_regime_summary_and_decade_table():
     assert table.count("\n") >= 8
 
 
+def test_demo_default_task_by_regime_and_class(tmp_path, capsys):
+    out_json = tmp_path / "demo.json"
+    assert main(["demo", "--objects", "8", "--json", str(out_json), "--no-progress"]) == 0
+    out = capsys.readouterr().out
+    assert "force-controlled" in out and "position-controlled" in out and "by object class" in out
+    data = json.loads(out_json.read_text())
+    assert set(data["summary"]) == {"best-ramp", "oracle", "rigid"} and len(data["regime"]) == 8
+    eps = data["episodes"]
+    # the same objects for every policy
+    assert [e["stiffness"] for e in eps["best-ramp"]] == [e["stiffness"] for e in eps["oracle"]]
+    assert [e["object_class"] for e in eps["rigid"]] == data["classes"]
+    assert set(data["classes"]) <= {"apple", "kiwifruit", "soft_cheese", "gelatin_gel"}
+
+
 def test_demo_main_job_runs_best_ramp_with_oracle_and_rigid(tmp_path, capsys):
     out_json = tmp_path / "demo.json"
-    assert main(["demo", "--bins", "2", "--episodes", "2", "--k-min", "1e-5", "--k-max", "1e-1",
+    assert main(["demo", "--task", "paper", "--bins", "2", "--episodes", "2", "--k-min", "1e-5", "--k-max", "1e-1",
                  "--json", str(out_json)]) == 0
     out = capsys.readouterr().out
     assert "best-ramp" in out and "oracle" in out and "rigid" in out

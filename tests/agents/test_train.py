@@ -1,14 +1,31 @@
-"""``pneunet-grasp train``: config parsing, a smoke run, resume, export; the full run (slow)."""
+"""``pneunet-grasp train``: config parsing (rl-zoo3 file + project file), the setpoint wrapper's two forms, a smoke
+run, resume, an atomic export; the full run (slow). rl-zoo3 itself on these files: ``test_zoo.py``."""
 
 from __future__ import annotations
 
+import inspect
 import json
+import os
+import subprocess
+import sys
+import warnings
 from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 
-from agents.train import batched_available, latest_checkpoint, load_train_config, parse_literal
+from agents.train import (
+    PROJECT_KEYS,
+    ZOO_KEYS,
+    action_mode,
+    batched_available,
+    export,
+    latest_checkpoint,
+    load_train_config,
+    parse_literal,
+    project_config_path,
+)
 from pneunet_env.cli import main
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -23,8 +40,42 @@ def test_configs_load():
     assert ppo["normalize"] == {"norm_obs": False, "norm_reward": True}
     assert ppo["max_train_minutes"] <= 10
     assert ppo["env_kwargs"] == {} or ppo["env_kwargs"].get("observe_volume", False) is False  # pressure only
+    assert ppo["env_wrapper"] == "pneunet_env.wrappers.PressureSetpoint" and action_mode(ppo) == "setpoint"
+    assert ppo["seed"] == 0 and ppo["vec_env"] == "batched" and ppo["eval_freq"] == 100_000  # from ppo.project.yaml
     sac = load_train_config(SAC)
-    assert sac["algo"] == "sac" and sac["normalize"] is False
+    assert sac["algo"] == "sac" and sac["normalize"] is False and action_mode(sac) == "setpoint"
+
+
+@pytest.mark.parametrize("config, algo", [(PPO, "PPO"), (SAC, "SAC")])
+def test_configs_are_plain_rl_zoo3_files(config, algo):
+    """Every key of ppo.yaml / sac.yaml is rl-zoo3's or the algorithm's (rl-zoo3 passes the rest to the algorithm);
+    the project keys are in the sibling file, and only there."""
+    pytest.importorskip("stable_baselines3")
+    import stable_baselines3 as sb3
+
+    main_keys = set(yaml.safe_load(config.read_text())["PneuNetGrasp-v0"])
+    params = set(inspect.signature(getattr(sb3, algo).__init__).parameters) - {"self", "env", "seed", "policy"}
+    assert main_keys - set(ZOO_KEYS) <= params, main_keys - set(ZOO_KEYS) - params
+    assert not main_keys & set(PROJECT_KEYS) and "action" not in main_keys
+    project = yaml.safe_load(project_config_path(config).read_text())["PneuNetGrasp-v0"]
+    assert set(project) == set(PROJECT_KEYS)
+    assert project_config_path(config).name == config.stem + ".project.yaml"
+
+
+def test_legacy_single_file_config_still_loads(tmp_path):
+    """A 0.2.0-style config (project keys and ``action: setpoint`` inside the rl-zoo3 file) gives the same settings,
+    with a FutureWarning naming the sibling file."""
+    zoo = yaml.safe_load(PPO.read_text())["PneuNetGrasp-v0"]
+    project = yaml.safe_load(project_config_path(PPO).read_text())["PneuNetGrasp-v0"]
+    legacy = {k: v for k, v in zoo.items() if k != "env_wrapper"} | project | {"action": "setpoint"}
+    path = tmp_path / "ppo.yaml"
+    path.write_text(yaml.safe_dump({"PneuNetGrasp-v0": legacy}))
+    with pytest.warns(FutureWarning, match="ppo.project.yaml"):
+        hp = load_train_config(path)
+    assert hp == load_train_config(PPO)
+    path.write_text(yaml.safe_dump({"PneuNetGrasp-v0": legacy | {"action": "rate"}}))
+    with pytest.warns(FutureWarning):
+        assert action_mode(load_train_config(path)) == "rate"
 
 
 def test_parse_literal_reads_rl_zoo_strings_without_eval():
@@ -38,21 +89,248 @@ def test_parse_literal_reads_rl_zoo_strings_without_eval():
         parse_literal("k", "dict(")
 
 
-@pytest.mark.parametrize("body, match", [
-    ("Other-v0: {}", "must map"),
-    ("PneuNetGrasp-v0: {algo: dqn}", "unknown algo"),
-    ("PneuNetGrasp-v0: {n_envs: 0}", "positive integer"),
-    ("PneuNetGrasp-v0: {vec_env: subproc}", "vec_env"),
-    ("PneuNetGrasp-v0: {normalize: '[1, 2]'}", "normalize"),
-    ("PneuNetGrasp-v0: {max_train_minutes: 0}", "max_train_minutes"),
+@pytest.mark.parametrize("body, project, match", [
+    ("Other-v0: {}", None, "must map"),
+    ("PneuNetGrasp-v0: {}", "PneuNetGrasp-v0: {algo: dqn}", "unknown algo"),
+    ("PneuNetGrasp-v0: {n_envs: 0}", None, "positive integer"),
+    ("PneuNetGrasp-v0: {}", "PneuNetGrasp-v0: {vec_env: subproc}", "vec_env"),
+    ("PneuNetGrasp-v0: {normalize: '[1, 2]'}", None, "normalize"),
+    ("PneuNetGrasp-v0: {}", "PneuNetGrasp-v0: {max_train_minutes: 0}", "max_train_minutes"),
+    ("PneuNetGrasp-v0: {}", "PneuNetGrasp-v0: {n_steps: 64}", "unknown key"),
+    ("PneuNetGrasp-v0: {}", "Other-v0: {seed: 1}", "must map"),
+    ("PneuNetGrasp-v0: {seed: 1}", "PneuNetGrasp-v0: {seed: 2}", "in both"),
+    ("PneuNetGrasp-v0: {env_wrapper: [3]}", None, "env_wrapper"),
+    ("PneuNetGrasp-v0: {callback: {a.B: 1, c.D: 2}}", None, "callback"),
+    ("PneuNetGrasp-v0: {frame_stack: 0}", None, "frame_stack"),
+    ("PneuNetGrasp-v0: {learning_rate: fast}", None, "lin_"),
+    ("PneuNetGrasp-v0: {noise_type: normal}", None, "not supported"),
 ])
-def test_bad_configs_are_rejected(tmp_path, body, match):
+def test_bad_configs_are_rejected(tmp_path, body, project, match):
     path = tmp_path / "ppo.yaml"
     path.write_text(body)
-    with pytest.raises(ValueError, match=match):
-        load_train_config(path)
-    with pytest.raises(SystemExit, match=match):
-        main(["train", "--config", str(path)])
+    if project is not None:
+        project_config_path(path).write_text(project)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", FutureWarning)
+        with pytest.raises(ValueError, match=match):
+            load_train_config(path)
+        with pytest.raises(SystemExit, match=match):
+            main(["train", "--config", str(path)])
+
+
+def test_project_file_is_optional_and_rl_zoo3_values_are_read(tmp_path):
+    path = tmp_path / "td3_custom.yaml"
+    path.write_text("PneuNetGrasp-v0: {learning_rate: lin_1e-3, train_freq: [1, episode], "
+                    "env_wrapper: [{pneunet_env.wrappers.PressureSetpoint: {step_fraction: 0.1}}], frame_stack: 2}")
+    hp = load_train_config(path)
+    assert hp["algo"] == "td3" and hp["seed"] == 0 and hp["frame_stack"] == 2 and action_mode(hp) == "setpoint"
+    from agents.train import LinearSchedule, _algo_kwargs
+
+    kw = _algo_kwargs(hp)
+    assert isinstance(kw["learning_rate"], LinearSchedule) and kw["learning_rate"](0.5) == 0.5e-3
+    assert kw["train_freq"] == (1, "episode") and not set(kw) & (set(ZOO_KEYS) | set(PROJECT_KEYS))
+
+
+# ---------------------------------------------------------------------------------------------
+# The setpoint action: one formula, a gym.Wrapper and a VecEnv form
+# ---------------------------------------------------------------------------------------------
+
+
+def test_pneunet_env_wrappers_imports_without_sb3_or_torch():
+    code = (
+        "import sys\n"
+        "class Block:\n"
+        "    def find_spec(self, name, path=None, target=None):\n"
+        "        if name.split('.')[0] in ('torch', 'stable_baselines3', 'agents'):\n"
+        "            raise ImportError('blocked: ' + name)\n"
+        "sys.meta_path.insert(0, Block())\n"
+        "import gymnasium as gym, pneunet_env\n"
+        "from pneunet_env.wrappers import *\n"
+        "env = PressureSetpoint(gym.make('PneuNetGrasp-v0')); env.reset(seed=0); env.step([0.5])\n"
+        "try:\n"
+        "    import pneunet_env.wrappers as w; w.PressureSetpointVecEnv\n"
+        "except ImportError as exc:\n"
+        "    print('ok', exc)\n"
+    )
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, cwd=ROOT)
+    assert res.returncode == 0 and res.stdout.startswith("ok blocked: stable_baselines3"), res.stderr
+
+
+class _Recorder:
+    """Wraps a gym env and records the actions it receives (the pressure changes)."""
+
+    @staticmethod
+    def make(log: list):
+        import gymnasium as gym
+
+        class Recorder(gym.Wrapper):
+            def step(self, action):
+                log.append(np.array(action, copy=True))
+                return self.env.step(action)
+
+        return Recorder
+
+
+def test_setpoint_wrapper_and_vec_env_form_send_the_same_actions():
+    """The gym.Wrapper (one env at a time, under DummyVecEnv, as rl-zoo3 and ``vec_env: dummy`` use it) and the
+    VecEnv form (as on the batched env) give the env the same pressure changes, bit for bit, across episode ends."""
+    pytest.importorskip("stable_baselines3")
+    import gymnasium as gym
+    from stable_baselines3.common.vec_env import DummyVecEnv
+
+    import pneunet_env  # noqa: F401
+    from agents.policies import setpoint_to_rate
+    from pneunet_env.wrappers import PressureSetpoint, PressureSetpointVecEnv
+
+    n = 3
+    logs_a: list[list] = [[] for _ in range(n)]
+    logs_b: list[list] = [[] for _ in range(n)]
+    per_env = DummyVecEnv([lambda i=i: PressureSetpoint(_Recorder.make(logs_a[i])(gym.make("PneuNetGrasp-v0")))
+                           for i in range(n)])
+    batched = PressureSetpointVecEnv(DummyVecEnv([lambda i=i: _Recorder.make(logs_b[i])(gym.make("PneuNetGrasp-v0"))
+                                                  for i in range(n)]))
+    assert batched.step_fraction == per_env.envs[0].step_fraction == 3.0 / 60.0
+    for venv in (per_env, batched):
+        venv.seed(7)
+    obs_a, obs_b = per_env.reset(), batched.reset()
+    rng = np.random.default_rng(0)
+    dones = 0
+    for _ in range(230):  # past two episode ends (100 steps, or earlier on a slip or crush)
+        u = rng.uniform(-1.2, 1.2, (n, 1)).astype(np.float32)
+        expected = setpoint_to_rate(u, obs_b[:, :1], batched.step_fraction)
+        np.testing.assert_array_equal(batched.actions(u), expected)
+        obs_a, rew_a, done_a, _ = per_env.step(u)
+        obs_b, rew_b, done_b, _ = batched.step(u)
+        np.testing.assert_array_equal(obs_a, obs_b)
+        np.testing.assert_array_equal(rew_a, rew_b)
+        np.testing.assert_array_equal(done_a, done_b)
+        dones += int(done_a.sum())
+    assert dones >= n
+    for la, lb in zip(logs_a, logs_b, strict=True):
+        assert len(la) == len(lb) == 230
+        np.testing.assert_array_equal(np.array(la), np.array(lb))
+        assert np.all(np.abs(np.array(la)) <= 1.0) and np.array(la).dtype == np.float32
+
+
+def test_setpoint_vec_env_form_on_the_batched_env():
+    pytest.importorskip("stable_baselines3")
+    if not batched_available():
+        pytest.skip("pneunet_env.envs.sb3 missing")
+    import pickle
+
+    from pneunet_env.envs.sb3 import SB3VecEnv
+    from pneunet_env.wrappers import PressureSetpointVecEnv, setpoint_to_rate
+
+    venv = PressureSetpointVecEnv(SB3VecEnv(num_envs=4, max_pressure_kpa=40.0))
+    assert venv.step_fraction == 3.0 / 40.0
+    obs = venv.reset()
+    target = np.zeros((4, 1), np.float32)  # (0 + 1)/2 of p_max: hold 20 kPa
+    ended = np.zeros(4, bool)
+    for _ in range(12):
+        a = venv.actions(target)
+        np.testing.assert_array_equal(a, setpoint_to_rate(target, obs, venv.step_fraction))
+        obs, _, dones, _ = venv.step(target)
+        ended |= dones
+    assert not ended.all()
+    np.testing.assert_allclose(obs[~ended, 0], 0.5, atol=1e-6)  # reached (7 steps of 3 kPa) and held
+    assert pickle.loads(pickle.dumps(PressureSetpointVecEnv)) is PressureSetpointVecEnv  # by name (SubprocVecEnv)
+    venv.close()
+
+
+def test_setpoint_wrapper_needs_reset_and_checks_step_fraction():
+    import gymnasium as gym
+
+    import pneunet_env  # noqa: F401
+    from pneunet_env.wrappers import PressureSetpoint
+
+    env = PressureSetpoint(gym.make("PneuNetGrasp-v0"))
+    with pytest.raises(gym.error.ResetNeeded):
+        env.step([0.0])
+    obs, _ = env.reset(seed=1)
+    obs, *_ = env.step([1.0])  # command p_max: the pressure rises by the largest step
+    assert obs[0] == pytest.approx(3.0 / 60.0)
+    with pytest.raises(ValueError, match="step_fraction"):
+        PressureSetpoint(gym.make("PneuNetGrasp-v0"), step_fraction=0.0)
+
+
+# ---------------------------------------------------------------------------------------------
+# Export
+# ---------------------------------------------------------------------------------------------
+
+
+def _fake_run(run_dir: Path, stats: bool = True, tag: str = "new") -> dict:
+    from agents.policies import NormalizationStats, RunningStats
+
+    run_dir.mkdir(parents=True, exist_ok=True)
+    (run_dir / "best_model.zip").write_bytes(f"{tag} model".encode() * 1000)
+    if stats:
+        NormalizationStats(False, True, 10.0, 10.0, 1e-8, 0.999, None,
+                           RunningStats(np.float64(0.25), np.float64(0.5), 7.0)).save(
+            run_dir / "best_model_vecnormalize.json")
+    return {"algo": "ppo", "action": "setpoint", "env_id": "PneuNetGrasp-v0", "seed": 0, "timesteps": 10,
+            "total_wall_s": 1.0, "best_eval": {"timesteps": 5}, "hyperparameters": {}, "versions": {}}
+
+
+def _snapshot(folder: Path) -> dict[str, bytes]:
+    return {p.name: p.read_bytes() for p in sorted(folder.iterdir())}
+
+
+def test_export_replaces_files_atomically(tmp_path, monkeypatch):
+    """``--export`` never leaves the user without statistics: every file is staged beside its destination, then
+    renamed; a failure part-way leaves the previous export whole, and no temporary file behind."""
+    import agents.train as train_mod
+    from agents.policies import NormalizationStats
+
+    dest = tmp_path / "models" / "ppo_x"
+    export(tmp_path / "old_run", dest, _fake_run(tmp_path / "old_run", tag="old"))
+    old = _snapshot(dest.parent)
+    assert sorted(old) == ["ppo_x.json", "ppo_x.zip", "ppo_x_vecnormalize.json"]
+    record = _fake_run(tmp_path / "run")
+
+    real_stage, calls = train_mod.stage_file, []
+
+    def failing_stage(final, content):
+        calls.append(final.name)
+        if final.name.endswith("_vecnormalize.json"):
+            raise OSError("disk full")
+        return real_stage(final, content)
+
+    monkeypatch.setattr(train_mod, "stage_file", failing_stage)
+    with pytest.raises(OSError, match="disk full"):
+        export(tmp_path / "run", dest, record)
+    assert calls[0] == "ppo_x.zip" and _snapshot(dest.parent) == old  # the staged model was removed too
+
+    real_replace, done = train_mod.os.replace, []
+
+    def failing_replace(src, dst):
+        if done:
+            raise OSError("replace failed")
+        done.append(dst)
+        return real_replace(src, dst)
+
+    monkeypatch.setattr(train_mod, "stage_file", real_stage)
+    monkeypatch.setattr(train_mod.os, "replace", failing_replace)
+    with pytest.raises(OSError, match="replace failed"):
+        export(tmp_path / "run", dest, record)
+    after = _snapshot(dest.parent)
+    assert sorted(after) == sorted(old)  # nothing deleted, no temporary file left
+    assert after["ppo_x_vecnormalize.json"] == old["ppo_x_vecnormalize.json"]
+    monkeypatch.setattr(train_mod.os, "replace", real_replace)
+
+    dest.with_suffix(".json").chmod(0o640)
+    export(tmp_path / "run", dest, record)
+    new = _snapshot(dest.parent)
+    umask = os.umask(0o022)
+    os.umask(umask)
+    assert dest.with_suffix(".zip").stat().st_mode & 0o777 == 0o666 & ~umask  # not mkstemp's 0600
+    assert dest.with_suffix(".json").stat().st_mode & 0o777 == 0o640  # an existing file keeps its permissions
+    assert sorted(new) == sorted(old) and new["ppo_x.zip"] == (tmp_path / "run" / "best_model.zip").read_bytes()
+    assert NormalizationStats.load(dest.with_name("ppo_x_vecnormalize.json")).ret_rms.count == 7.0
+    assert json.loads(new["ppo_x.json"])["action"] == "setpoint"
+
+    # a new model without statistics: the old statistics go (after the model is in place), nothing else
+    export(tmp_path / "bare", dest, _fake_run(tmp_path / "bare", stats=False, tag="bare"))
+    assert sorted(_snapshot(dest.parent)) == ["ppo_x.json", "ppo_x.zip"]
 
 
 def _smoke(run_dir: Path, timesteps: int, vec_env: str, extra=(), config: Path = PPO):
@@ -69,11 +347,14 @@ def test_smoke_train_resume_export(tmp_path):
     run_dir = tmp_path / "run"
     vec_env = "batched" if batched_available() else "dummy"
     assert _smoke(run_dir, 2048, vec_env) == 0
-    for name in ("best_model.zip", "best_model_vecnormalize.pkl", "final_model.zip", "final_model_vecnormalize.pkl",
-                 "config.yaml", "run.json", "evaluations.npz"):
+    for name in ("best_model.zip", "best_model_vecnormalize.pkl", "best_model_vecnormalize.json", "final_model.zip",
+                 "final_model_vecnormalize.pkl", "final_model_vecnormalize.json", "config.yaml", "config.project.yaml",
+                 "run.json", "evaluations.npz"):
         assert (run_dir / name).is_file(), name
     record = json.loads((run_dir / "run.json").read_text())
     assert record["timesteps"] == 2048 and record["seed"] == 0 and record["seeds"]["eval_env"] == 10_000
+    assert record["action"] == "setpoint"
+    assert load_train_config(run_dir / "config.yaml") == record["hyperparameters"]  # the run's config, two files
     evals = np.load(run_dir / "evaluations.npz")
     assert list(evals["timesteps"]) == [1024, 2048] and evals["successes"].shape == (2, 4)  # is_success logged
     ckpt = latest_checkpoint(run_dir)
@@ -91,7 +372,9 @@ def test_smoke_train_resume_export(tmp_path):
     # export, then load through the policy registry (with its VecNormalize statistics)
     assert _smoke(run_dir, 3072, vec_env, ["--resume", "--export", str(tmp_path / "models" / "ppo_test")]) == 0
     entry = make_policy(str(tmp_path / "models" / "ppo_test.zip"))
-    assert entry.policy.algo == "PPO" and entry.policy.vecnormalize_path is not None
+    assert entry.policy.algo == "PPO" and entry.policy.vecnormalize_path == tmp_path / "models" / (
+        "ppo_test_vecnormalize.json")
+    assert entry.policy.action_mode == "setpoint" and not (tmp_path / "models" / "ppo_test_vecnormalize.pkl").exists()
     a = entry.policy(np.array([[0.0], [0.5], [1.0]], np.float32))
     assert a.shape == (3, 1) and np.all(np.abs(a) <= 1.0)
     np.testing.assert_array_equal(a, entry.policy(np.array([[0.0], [0.5], [1.0]], np.float32)))  # deterministic

@@ -3,6 +3,10 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
+import json
+import sys
+from pathlib import Path
 
 import gymnasium as gym
 import numpy as np
@@ -24,6 +28,64 @@ def _state(**kw) -> RenderState:
     return RenderState(**base)
 
 
+# Reference frames (tests/envs/data/render_reference/): states reached in the env, stored (states.json) with the
+# frames drawn of them (NAME.png), so that the test compares the renderer alone, whatever the env's physics or
+# defaults become. The cases: (name, reset options, steps of action +1 from reset (seed 0), frame size).
+# The stored frames were drawn by the numpy rasteriser as it was before it was made fast (pixel masks over the
+# whole supersampled canvas); ``python tests/envs/test_render.py`` rewrites them with today's renderer: only
+# when the picture is meant to change.
+REFERENCE_DIR = Path(__file__).parent / "data" / "render_reference"
+_WIDE = {"object_curvature": 0.02}  # a wide object: a shallow arc across the frame
+REFERENCE_CASES = (
+    ("rest", {"object_stiffness": 1e-4}, 0, (480, 360)),  # flat, out of contact
+    ("ring_contact", {"object_stiffness": 1e-2}, 15, (480, 360)),  # curled round a small ring
+    ("ring_held", {"object_stiffness": 1e-2}, 55, (480, 360)),  # held, in the hold phase
+    ("soft_loaded", {"object_stiffness": 1e-5, **_WIDE}, 4, (480, 360)),  # indented, the loaded zone tinted
+    ("soft_damaged", {"object_stiffness": 1e-5, **_WIDE}, 10, (480, 360)),  # crushed through: damaged, a film
+    ("soft_dropped", {"object_stiffness": 1e-5, **_WIDE}, 55, (480, 360)),  # damaged and dropped in the hold
+    ("firm_loaded", {"object_stiffness": 1e-3, **_WIDE}, 8, (480, 360)),
+    ("firm_crushed", {"object_stiffness": 1e-3, **_WIDE}, 20, (480, 360)),  # crushed through, not damaged
+    ("small", {"object_stiffness": 1e-3, **_WIDE}, 15, (160, 120)),
+)
+
+
+def _env_state(options: dict, steps: int, size: tuple[int, int]):
+    """The env's render state and render config after ``steps`` steps of ``+1`` (damage and slip don't end it)."""
+    env = gym.make("PneuNetGrasp-v0", render_mode="rgb_array", render_width=size[0], render_height=size[1],
+                   terminate_on_damage=False, terminate_on_slip=False)
+    env.reset(seed=0, options=options)
+    for _ in range(steps):
+        env.step(np.array([1.0], np.float32))
+    state, cfg = env.unwrapped.render_state(), env.unwrapped.config.render
+    env.close()
+    return state, {"width": cfg.width, "height": cfg.height, "chambers": cfg.chambers}
+
+
+def _state_json(state: RenderState) -> dict:
+    d = state._asdict()
+    d["params"] = dataclasses.asdict(state.params)
+    return d
+
+
+def _state_from_json(d: dict) -> RenderState:
+    return RenderState(**{**d, "params": ActuatorParams(**d["params"])})
+
+
+def _write_reference_frames(render=render_frame) -> None:
+    REFERENCE_DIR.mkdir(parents=True, exist_ok=True)
+    cases = []
+    for name, options, steps, size in REFERENCE_CASES:
+        state, frame = _env_state(options, steps, size)
+        cases.append({"name": name, "options": options, "steps": steps, "frame": frame, "state": _state_json(state)})
+        path = save_png(REFERENCE_DIR / f"{name}.png", render(state, **frame))
+        print(f"{path}: {path.stat().st_size} bytes")
+    (REFERENCE_DIR / "states.json").write_text(json.dumps(cases, indent=1) + "\n")
+
+
+def _reference_cases() -> list[dict]:
+    return json.loads((REFERENCE_DIR / "states.json").read_text())
+
+
 def _reddish(img):
     r, g, b = (img[..., i].astype(int) for i in range(3))
     return (r > 170) & (g < 80) & (b < 80)
@@ -34,6 +96,61 @@ def test_frame_shape_dtype_and_size():
     assert f.shape == (120, 200, 3) and f.dtype == np.uint8
     with pytest.raises(ValueError, match="32"):
         render_frame(_state(), 10, 10)
+    # odd sizes and other supersamplings (an odd subpixel grid is drawn whole, not as a mirrored half)
+    kw = dict(curvature=0.3, in_contact=True, indentation=0.5, contact_force=1e-3, pressure_fraction=0.7)
+    for width, height, chambers, ss in ((161, 121, 7, 2), (99, 64, 3, 1), (97, 65, 12, 3)):
+        f = render_frame(_state(**kw), width, height, chambers=chambers, supersample=ss)
+        assert f.shape == (height, width, 3) and f.dtype == np.uint8 and f.flags.c_contiguous
+        assert np.array_equal(f, render_frame(_state(**kw), width, height, chambers=chambers, supersample=ss))
+
+
+# Tolerance of the comparison with the reference frames: the mean absolute difference (over every channel of
+# every pixel, in grey levels) and the fraction of pixels with a channel off by more than 16 levels.
+REFERENCE_MEAN_ABS_MAX = 0.25
+REFERENCE_FRACTION_OFF_16_MAX = 1e-3
+
+
+def test_frames_match_the_reference_frames():
+    """The picture is the one drawn before the renderer was made fast (the frames under ``data/render_reference``).
+
+    It is drawn the same way (2 x 2 supersampling, the same shapes and outlines, averaged in the same order), so
+    frames match to rounding: only a pixel here and there of the loaded zone's tint (computed at the pixel's
+    centre, not averaged over its subpixels) may be off, by a grey level.
+    """
+    cases = _reference_cases()
+    assert [c["name"] for c in cases] == [c[0] for c in REFERENCE_CASES]
+    for case in cases:
+        ref = read_png(REFERENCE_DIR / f"{case['name']}.png")
+        got = render_frame(_state_from_json(case["state"]), **case["frame"])
+        assert got.shape == ref.shape == (case["frame"]["height"], case["frame"]["width"], 3), case["name"]
+        diff = np.abs(got.astype(int) - ref.astype(int))
+        off_16 = np.mean(diff.max(axis=-1) > 16)
+        assert diff.mean() <= REFERENCE_MEAN_ABS_MAX and off_16 <= REFERENCE_FRACTION_OFF_16_MAX, (
+            f"{case['name']}: mean |difference| {diff.mean():.4f} grey levels, {off_16:.2%} of the pixels off by "
+            "> 16 (if the picture is meant to change, rewrite the references: python tests/envs/test_render.py)"
+        )
+
+
+def test_the_env_renders_what_render_frame_draws_of_its_state():
+    state, frame = _env_state({"object_stiffness": 1e-4}, 5, (160, 120))
+    env = gym.make("PneuNetGrasp-v0", render_mode="rgb_array", render_width=160, render_height=120,
+                   terminate_on_damage=False, terminate_on_slip=False)
+    env.reset(seed=0, options={"object_stiffness": 1e-4})
+    for _ in range(5):
+        env.step(np.array([1.0], np.float32))
+    assert np.array_equal(env.render(), render_frame(state, **frame))
+    env.close()
+
+
+def test_render_benchmark_runs():
+    from pneunet_env.bench.render_speed import bench_render
+
+    r = bench_render(frames=3, repeats=1)
+    assert r["pneunet_frames_per_s"] > 0 and r["pneunet_frame_shape"] == [360, 480, 3]
+    if r["cartpole_frames_per_s"] is None:  # CartPole-v1 draws with pygame, which this package does not need
+        assert r["cartpole_error"] and r["ratio"] is None
+    else:
+        assert r["ratio"] == pytest.approx(r["pneunet_frames_per_s"] / r["cartpole_frames_per_s"])
 
 
 def test_frames_change_as_the_actuator_bends():
@@ -123,3 +240,7 @@ def test_render_command_writes_frames_and_sheet(tmp_path):
     sheet = read_png(tmp_path / "sheet.png")
     f = read_png(frames[0])
     assert sheet.shape[0] > 2 * f.shape[0] and sheet.shape[1] > 3 * f.shape[1]
+
+
+if __name__ == "__main__":  # python tests/envs/test_render.py: rewrite the reference frames
+    sys.exit(_write_reference_frames())

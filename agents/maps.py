@@ -1,0 +1,591 @@
+"""``pneunet-grasp map``: where the claim holds, charted over object Young's modulus x radius.
+
+``pneunet-grasp map [--grid NE NR] [--episodes M] [--density RHO ...] [--failure-strain EPS] [--out DIR]``
+
+Three policies face the same objects, side by side: the **oracle** (knows the object, picks the best constant
+pressure; its successes are the *feasible window*), the **best blind schedule** (``best-ramp``: one linear pressure
+ramp tuned on the default task) and the **rigid jaw** (``rigid``: a blind position-controlled jaw in
+``RigidGrasp-v0``, tuned on the default task). Each cell of the map is one object, pinned through
+``reset(seed=s, options={...})``:
+
+* Young's modulus ``E`` log-spaced over ``--e-range`` (default 0.1 kPa to 3 MPa: the feasible window's soft edge
+  lies at 0.3 to 1 kPa at 1000 kg/m^3), shear modulus ``E/3``;
+* outer radius ``R`` over ``--r-range`` (default 15 to 40 mm), curvature ``1000/R`` per m;
+* compliant depth ``H = R/4`` (so ``H kappa_obj = 1/4`` everywhere and ``k~`` scales as ``E/R``);
+* density ``--density`` (default 1000 kg/m^3), failure strain ``--failure-strain`` (default 0.3) and, objects
+  being drawn from ranges, failure stress ``3 eps_f mu_obj`` (:func:`pneunet_env.task.object_thresholds`).
+
+The environment is the default task's physics and damage rule (``hoop_strain``) with objects from ranges
+(:func:`map_config`). The blind policies are built on the default task's config (they are tuned there). The rigid
+jaw closes by the default task's millimetres (its ``travel_mm`` is passed) past the default task's nominal object
+(R = 27.5 mm, ``--jaw-nominal-mm``; :func:`jaw_config`), so that it stops where it was tuned to stop: a blind jaw
+meets every object at the same place. Every policy sees the same seeds (``seed * 1000003 + 1000 * cell +
+episode``).
+
+Drawn on every panel: the **regime boundary** ``phi = 1/2`` (:func:`pneunet_env.physics.regimes.blocked_fraction`
+at ``p_max``; force-controlled on the soft side, position-controlled on the stiff side), the **feasible window**
+(the cells where the oracle succeeds) and the catalogue classes of the default use case (``E`` range x radius range;
+only locators: the map's objects have the thresholds above, not each class's own). Failing cells are marked ``d``
+(damaged) or ``s`` (slipped). With more than one ``--density``, a second row charts ``E`` x density at one radius
+(``--density-radius``, default 25 mm): slip needs friction to carry the weight ``rho g H``.
+
+Writes ``DIR/map.json`` (:func:`success_map`'s result) and ``DIR/map.png`` (:func:`plot_map`); prints a summary:
+each policy's success inside the window, on its force-controlled and its position-controlled side.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from pneunet_env.cli.progress import add_progress_argument
+from pneunet_env.cli.progress import progress as progress_bar
+from pneunet_env.config import EnvConfig, load_config
+
+__all__ = ["ROLES", "map_config", "object_options", "make_entries", "default_jaw_nominal_mm", "jaw_config",
+           "blocked_fraction_grid", "success_map", "summarize", "plot_map", "add_arguments", "run"]
+
+RIGID_ENV = "RigidGrasp-v0"
+
+ROLES = ("oracle", "best-ramp", "rigid")
+"""The three policies of the map, by role (the keys of ``result["policies"]``), in panel order."""
+
+THICKNESS_RATIO = 0.25
+"""``H = R/4``: the compliant depth as a fraction of the radius."""
+
+E_RANGE_KPA = (0.1, 3000.0)
+R_RANGE_MM = (15.0, 40.0)
+PHI_FINE = (64, 40)
+"""The regime boundary is contoured on a finer grid than the episodes (E points, R points)."""
+
+
+# ---------------------------------------------------------------------------------------------
+# Objects, config, policies
+# ---------------------------------------------------------------------------------------------
+
+
+def map_config() -> EnvConfig:
+    """The default task's physics and damage rule, objects from ranges (pins override them); the curvature range
+    spans the map's radii (15 to 40 mm), so that the rigid jaw's nominal object (its middle) is hand-scale."""
+    return load_config(use_case=None, damage_rule="hoop_strain", object_curvature_per_m=[25.0, 1000.0 / 15.0],
+                       object_thickness_mm=[3.75, 10.0])
+
+
+def object_options(youngs_modulus_kpa: float, radius_mm: float, density_kg_m3: float = 1000.0,
+                   failure_strain: float = 0.3, thickness_ratio: float = THICKNESS_RATIO) -> dict[str, float]:
+    """The ``reset`` pins of one object: ``mu = E/3``, ``kappa = 1000/R``, ``H = thickness_ratio R``."""
+    return {
+        "object_shear_modulus_kpa": float(youngs_modulus_kpa) / 3.0,
+        "object_curvature_per_m": 1000.0 / float(radius_mm),
+        "object_thickness_mm": thickness_ratio * float(radius_mm),
+        "object_density_kg_m3": float(density_kg_m3),
+        "object_failure_strain": float(failure_strain),
+    }
+
+
+def make_entries(config: EnvConfig, blind: str = "best-ramp", rigid: str = "rigid") -> dict[str, Any]:
+    """``{role: PolicyEntry}``: the oracle on ``config``; the blind ramp and the rigid jaw tuned on the default task.
+
+    A ``rigid`` spec without ``travel_mm`` gets the default task's jaw travel, so that the jaw closes by the same
+    millimetres it was tuned to (the map's config would otherwise give another travel); run it on
+    :func:`jaw_config`'s env so that it also stops at the same place.
+    """
+    from agents.policies import make_policy, parse_spec
+    from pneunet_env.envs.rigid import default_jaw_travel_mm
+
+    default = load_config()
+    name, params = parse_spec(rigid)
+    if name == "rigid" and "travel_mm" not in params:
+        rigid = f"{rigid}{',' if ':' in rigid else ':'}travel_mm={default_jaw_travel_mm(default):g}"
+    return {"oracle": make_policy("oracle", config), "best-ramp": make_policy(blind, default),
+            "rigid": make_policy(rigid, default)}
+
+
+def default_jaw_nominal_mm() -> float:
+    """The radius of the default task's nominal object (27.5 mm): the surface the tuned jaw's closure counts from."""
+    from pneunet_env.envs.rigid import _nominal_curvature_per_m
+
+    return 1e3 / _nominal_curvature_per_m(load_config())
+
+
+def jaw_config(config: EnvConfig, nominal_radius_mm: float | None = None) -> EnvConfig:
+    """``config`` with its curvature range collapsed onto the jaw's nominal object (default: the default task's,
+    :func:`default_jaw_nominal_mm`). ``RigidGrasp-v0`` stops the jaw ``c`` mm inside the middle of the config's
+    curvature range; the objects themselves are pinned, so the range changes nothing else."""
+    r = default_jaw_nominal_mm() if nominal_radius_mm is None else float(nominal_radius_mm)
+    if not r > 0:
+        raise ValueError(f"the jaw's nominal radius must be > 0, got {nominal_radius_mm!r}")
+    return load_config(config, object_curvature_per_m=[1e3 / r, 1e3 / r])
+
+
+def blocked_fraction_grid(youngs_modulus_kpa, radius_mm, config: EnvConfig,
+                          thickness_ratio: float = THICKNESS_RATIO) -> np.ndarray:
+    """``phi`` (:func:`pneunet_env.physics.regimes.blocked_fraction`, at ``p_max``) on the grid, shape ``(nR, nE)``."""
+    from pneunet_env.physics.contact import winkler_stiffness
+    from pneunet_env.physics.regimes import blocked_fraction
+
+    a = config.actuator
+    E, R = np.meshgrid(np.asarray(youngs_modulus_kpa, float), np.asarray(radius_mm, float))
+    kappa = 1000.0 / R
+    k = winkler_stiffness(E / 3.0, thickness_ratio * R, kappa, a.width_mm, a.shear_modulus_kpa)
+    return blocked_fraction(k, 1e-3 * a.width_mm * kappa, config.pressure_max, config.actuator_params, config.solver)
+
+
+def _episode_seed(seed: int, cell: int, episode: int) -> int:
+    return seed * 1_000_003 + 1000 * cell + episode
+
+
+# ---------------------------------------------------------------------------------------------
+# Running
+# ---------------------------------------------------------------------------------------------
+
+
+def _run_cells(envs, entries, cells, episodes: int, seed: int, cell_offset: int, bar) -> dict[str, dict]:
+    """Rates per role over ``cells`` (a list of reset options): ``{role: {success, damage, slip, failures}}``."""
+    from agents.evaluate import run_episode
+
+    out = {}
+    for role, entry in entries.items():
+        env = envs[role]
+        rates = np.zeros((3, len(cells)))
+        failed = 0
+        for c, options in enumerate(cells):
+            for e in range(episodes):
+                r = run_episode(env, entry.policy, _episode_seed(seed, cell_offset + c, e), options)
+                rates[:, c] += (r["success"], r["damaged"], r["dropped"])
+                failed += int(r["solver_failed"])
+                bar.update()
+        rates /= episodes
+        out[role] = {"success": rates[0], "damage": rates[1], "slip": rates[2], "solver_failures": failed}
+    return out
+
+
+def _grid_lists(a: np.ndarray) -> list:
+    """A float array as nested lists, NaN as ``None`` (valid JSON)."""
+    return [[None if not math.isfinite(x) else float(x) for x in row] for row in np.atleast_2d(a)]
+
+
+def _catalogue_boxes() -> list[dict[str, Any]]:
+    from pneunet_env.catalogue import load_catalogue, use_case_weights
+
+    classes, weights = load_catalogue(), use_case_weights()
+    return [{"name": n, "weight": w, "youngs_modulus_kpa": list(classes[n].youngs_modulus_kpa),
+             "radius_mm": list(classes[n].radius_mm), "thickness_mm": list(classes[n].thickness_mm),
+             "density_kg_m3": list(classes[n].density_kg_m3), "failure_strain": list(classes[n].failure_strain)}
+            for n, w in weights.items() if w > 0]
+
+
+def success_map(E_grid, R_grid, density_kg_m3: float = 1000.0, failure_strain: float = 0.3, episodes: int = 1,
+                seed: int = 0, progress: bool | None = None, densities=None, density_radius_mm: float = 25.0,
+                blind: str = "best-ramp", rigid: str = "rigid", config: EnvConfig | None = None,
+                thickness_ratio: float = THICKNESS_RATIO, jaw_nominal_mm: float | None = None) -> dict[str, Any]:
+    """Grasp success of the oracle, the blind ramp and the rigid jaw over ``E_grid`` (kPa) x ``R_grid`` (mm).
+
+    Args:
+        E_grid, R_grid: Young's moduli (kPa) and radii (mm) of the cells.
+        density_kg_m3, failure_strain: the objects' (the same everywhere).
+        episodes: episodes per policy and cell; seed: the base seed (shared by every policy).
+        progress: a bar on stderr (``None``: when stderr is a terminal).
+        densities: if given (two or more), also a row over ``E_grid`` x ``densities`` at ``density_radius_mm``.
+        blind, rigid: the specs of the blind ramp and the jaw (:func:`agents.policies.make_policy`).
+        config: the env's config (default :func:`map_config`).
+        jaw_nominal_mm: the radius the rigid jaw's closure counts from (default: the default task's, 27.5 mm).
+
+    Returns a JSON-able dict: ``youngs_modulus_kpa``, ``radius_mm`` (the grids); ``policies`` ``{role: {spec,
+    label, env_id, blind, success, damage, slip, solver_failures}}`` with ``(nR, nE)`` rate arrays as nested lists;
+    ``phi`` on the cells, ``phi_fine`` (a finer grid for the contour), ``window`` (the oracle's successes, as 0/1),
+    ``summary`` (:func:`summarize`), ``catalogue`` (the default use case's class boxes), ``density_row`` (or
+    ``None``), the settings and the config.
+    """
+    if int(episodes) != episodes or episodes < 1:
+        raise ValueError(f"episodes must be an integer >= 1, got {episodes!r}")
+    E = np.asarray(E_grid, dtype=float)
+    R = np.asarray(R_grid, dtype=float)
+    if E.ndim != 1 or R.ndim != 1 or E.size < 1 or R.size < 1 or (E <= 0).any() or (R <= 0).any():
+        raise ValueError("E_grid and R_grid must be non-empty 1-d sequences of positive numbers")
+    dens = sorted(float(d) for d in densities) if densities is not None and len(densities) > 1 else None
+    config = map_config() if config is None else config
+    t0 = time.perf_counter()
+    entries = make_entries(config, blind, rigid)
+    rigid_config = jaw_config(config, jaw_nominal_mm)
+    envs = {role: entry.make_env(rigid_config if entry.env_id == RIGID_ENV else config)
+            for role, entry in entries.items()}
+    cells = [object_options(e, r, density_kg_m3, failure_strain, thickness_ratio) for r in R for e in E]
+    row_cells = [] if dens is None else [object_options(e, density_radius_mm, d, failure_strain, thickness_ratio)
+                                         for d in dens for e in E]
+    bar = progress_bar(total=len(entries) * (len(cells) + len(row_cells)) * episodes, desc="map", unit="episode",
+                       enabled=progress)
+    try:
+        rates = _run_cells(envs, entries, cells, episodes, seed, 0, bar)
+        row_rates = _run_cells(envs, entries, row_cells, episodes, seed, len(cells), bar) if dens else None
+    finally:
+        bar.close()
+        for env in envs.values():
+            env.close()
+    shape = (R.size, E.size)
+    phi = blocked_fraction_grid(E, R, config, thickness_ratio)
+    fine_E = np.logspace(math.log10(E.min()), math.log10(E.max()), PHI_FINE[0]) if E.size > 1 else E
+    fine_R = np.linspace(R.min(), R.max(), PHI_FINE[1]) if R.size > 1 else R
+    phi_fine = blocked_fraction_grid(fine_E, fine_R, config, thickness_ratio)
+
+    def policies(rs, shp):
+        return {role: {"spec": entries[role].name, "label": entries[role].label, "env_id": entries[role].env_id,
+                       "blind": entries[role].blind, "solver_failures": rs[role]["solver_failures"],
+                       **{k: _grid_lists(rs[role][k].reshape(shp)) for k in ("success", "damage", "slip")}}
+                for role in entries}
+
+    result: dict[str, Any] = {
+        "youngs_modulus_kpa": E.tolist(),
+        "radius_mm": R.tolist(),
+        "thickness_rule": (f"H = R/{1 / thickness_ratio:g}" if (1 / thickness_ratio).is_integer()
+                           else f"H = {thickness_ratio:g} R"),
+        "thickness_ratio": float(thickness_ratio),
+        "density_kg_m3": float(density_kg_m3),
+        "failure_strain": float(failure_strain),
+        "failure_stress_rule": "3 eps_f mu_obj (objects from ranges)",
+        "damage_rule": config.task.damage_rule,
+        "episodes": int(episodes),
+        "seed": int(seed),
+        "episode_seeds": "seed * 1000003 + 1000 * cell + episode, cell = i_R * n_E + i_E (density row: after them)",
+        "roles": list(entries),
+        "policies": policies(rates, shape),
+        "phi": _grid_lists(phi),
+        "phi_fine": {"youngs_modulus_kpa": fine_E.tolist(), "radius_mm": fine_R.tolist(), "phi": _grid_lists(phi_fine)},
+        "regime_pressure_kpa": config.task.max_pressure_kpa,
+        "jaw_nominal_radius_mm": 1e3 / rigid_config.objects.object_curvature_per_m[0],
+        "window": _grid_lists((rates["oracle"]["success"].reshape(shape) >= 0.5).astype(float)),
+        "catalogue": _catalogue_boxes(),
+        "density_row": None,
+    }
+    if dens:
+        phi_row = blocked_fraction_grid(fine_E, [density_radius_mm], config, thickness_ratio)[0]
+        result["density_row"] = {
+            "radius_mm": float(density_radius_mm),
+            "density_kg_m3": dens,
+            "policies": policies(row_rates, (len(dens), E.size)),
+            "phi_fine": {"youngs_modulus_kpa": fine_E.tolist(), "phi": [None if not math.isfinite(x) else float(x)
+                                                                       for x in phi_row]},
+        }
+    result["summary"] = summarize(result)
+    result["elapsed_s"] = time.perf_counter() - t0
+    result["config"] = config.to_dict()
+    return result
+
+
+def _arr(x) -> np.ndarray:
+    return np.array([[np.nan if v is None else v for v in row] for row in x], dtype=float)
+
+
+def summarize(result: dict[str, Any]) -> dict[str, Any]:
+    """Per role: success over all cells; inside the window (the oracle's successes), over its force-controlled
+    (``phi < 1/2``) and position-controlled sides; failure modes outside the window; per radius, the ``E`` range
+    that succeeds. ``grasps_both``: succeeds (rate >= 1/2) on some cell of each side of the boundary."""
+    E = np.asarray(result["youngs_modulus_kpa"])
+    phi = _arr(result["phi"])
+    window = _arr(result["window"]) > 0.5
+    force = phi < 0.5
+    out: dict[str, Any] = {"cells": int(phi.size), "window_cells": int(window.sum()),
+                           "window_force_cells": int((window & force).sum()),
+                           "window_position_cells": int((window & ~force).sum())}
+
+    def mean(a, m):
+        return float(a[m].mean()) if m.any() else None
+
+    for role in result["roles"]:
+        p = result["policies"][role]
+        s, d, sl = _arr(p["success"]), _arr(p["damage"]), _arr(p["slip"])
+        ok = s >= 0.5
+        out[role] = {
+            "success": mean(s, np.ones_like(ok)),
+            "success_in_window": mean(s, window),
+            "success_in_window_force": mean(s, window & force),
+            "success_in_window_position": mean(s, window & ~force),
+            "success_outside_window": mean(s, ~window),
+            "damage_outside_window": mean(d, ~window),
+            "slip_outside_window": mean(sl, ~window),
+            "grasps_both": bool((ok & force).any() and (ok & ~force).any()),
+            "e_range_kpa_by_radius": [[float(E[row].min()), float(E[row].max())] if row.any() else None
+                                      for row in ok],
+        }
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+# The figure (matplotlib imported here only)
+# ---------------------------------------------------------------------------------------------
+
+_WINDOW_COLOUR = "#e0007a"
+_CLASS_COLOUR = "#1f4fa0"
+
+
+def _edges(x: np.ndarray, log: bool) -> np.ndarray:
+    """Cell edges around centres ``x`` (geometric midpoints on a log axis)."""
+    v = np.log10(x) if log else np.asarray(x, float)
+    if v.size == 1:
+        e = np.array([v[0] - 0.5, v[0] + 0.5]) if log else np.array([v[0] * 0.9, v[0] * 1.1])
+    else:
+        mid = 0.5 * (v[1:] + v[:-1])
+        e = np.concatenate([[2 * v[0] - mid[0]], mid, [2 * v[-1] - mid[-1]]])
+    return 10.0 ** e if log else e
+
+
+def _outline(ax, mask: np.ndarray, xe: np.ndarray, ye: np.ndarray, **kw) -> None:
+    """Draw the boundary of the ``True`` cells of ``mask`` (rows: y, columns: x) along the cell edges."""
+    ny, nx = mask.shape
+    m = np.pad(mask, 1, constant_values=False)
+    segs = []
+    for i in range(ny + 1):  # horizontal edges between rows i-1 and i
+        for j in range(nx):
+            if m[i, j + 1] != m[i + 1, j + 1]:
+                segs.append([(xe[j], ye[i]), (xe[j + 1], ye[i])])
+    for i in range(ny):  # vertical edges between columns j-1 and j
+        for j in range(nx + 1):
+            if m[i + 1, j] != m[i + 1, j + 1]:
+                segs.append([(xe[j], ye[i]), (xe[j], ye[i + 1])])
+    from matplotlib.collections import LineCollection
+
+    ax.add_collection(LineCollection(segs, **kw))
+
+
+def _marks(ax, E, Y, p) -> None:
+    """``d`` (damaged) or ``s`` (slipped) on each cell that mostly fails."""
+    s, d, sl = _arr(p["success"]), _arr(p["damage"]), _arr(p["slip"])
+    for i, y in enumerate(Y):
+        for j, e in enumerate(E):
+            if s[i, j] < 0.5:
+                ax.text(e, y, "d" if d[i, j] >= sl[i, j] else "s", ha="center", va="center", fontsize=7,
+                        color="#5a1010" if d[i, j] >= sl[i, j] else "#6a4a00", zorder=4)
+
+
+def _pct(x) -> str:
+    return "-" if x is None else f"{x:.0%}"
+
+
+def plot_map(result: dict[str, Any], path: str | Path) -> Path:
+    """One PNG: a panel per policy (success rate, shared colour scale), the regime boundary, the feasible window and
+    the catalogue's classes on each; with a density row, a second, smaller row of panels (``E`` x density)."""
+    import matplotlib
+
+    matplotlib.use("Agg", force=False)
+    import matplotlib.pyplot as plt
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch, Rectangle
+
+    E = np.asarray(result["youngs_modulus_kpa"], float)
+    R = np.asarray(result["radius_mm"], float)
+    roles = result["roles"]
+    row = result.get("density_row")
+    n = len(roles)
+    heights = [3.0, 1.25] if row else [3.0]
+    fig = plt.figure(figsize=(5.0 * n + 0.9, 5.6 + (2.4 if row else 0.0)))
+    gs = fig.add_gridspec(len(heights), n + 1, height_ratios=heights, width_ratios=[1.0] * n + [0.05],
+                          hspace=0.62, wspace=0.22)
+    xe, ye = _edges(E, True), _edges(R, False)
+    window = _arr(result["window"]) > 0.5
+    pf = result["phi_fine"]
+    phi_fine = _arr(pf["phi"])
+    summary = result.get("summary") or summarize(result)
+    cmap = plt.get_cmap("YlGn")
+    mesh = None
+    for k, role in enumerate(roles):
+        p = result["policies"][role]
+        ax = fig.add_subplot(gs[0, k])
+        mesh = ax.pcolormesh(xe, ye, _arr(p["success"]), cmap=cmap, vmin=0.0, vmax=1.0, shading="flat", zorder=1)
+        _marks(ax, E, R, p)
+        if len(pf["youngs_modulus_kpa"]) > 1 and len(pf["radius_mm"]) > 1 and np.nanmin(phi_fine) < 0.5 < np.nanmax(
+                phi_fine):
+            ax.contour(pf["youngs_modulus_kpa"], pf["radius_mm"], phi_fine, levels=[0.5], colors="black",
+                       linestyles="--", linewidths=1.6, zorder=5)
+            _regime_labels(ax, np.asarray(pf["youngs_modulus_kpa"]), np.asarray(pf["radius_mm"]), phi_fine)
+        _outline(ax, window, xe, ye, colors=_WINDOW_COLOUR, linewidths=2.4, zorder=6)
+        for box in result.get("catalogue", []):
+            (e0, e1), (r0, r1) = box["youngs_modulus_kpa"], box["radius_mm"]
+            ax.add_patch(Rectangle((e0, r0), e1 - e0, r1 - r0, fill=False, ec=_CLASS_COLOUR, lw=1.3, ls=":",
+                                   zorder=7))
+            ax.text(math.sqrt(e0 * e1), r1 - 0.4, box["name"].replace("_", " "), ha="center", va="top", fontsize=7,
+                    color=_CLASS_COLOUR, zorder=8, bbox=dict(boxstyle="round,pad=0.12", fc="white", ec="none",
+                                                             alpha=0.75))
+        ax.set_xscale("log")
+        ax.set_xlim(xe[0], xe[-1])
+        ax.set_ylim(ye[0], ye[-1])
+        ax.set_xlabel("object Young's modulus E (kPa)")
+        if k == 0:
+            ax.set_ylabel("object radius R (mm)")
+        s = summary[role]
+        ax.set_title(f"{_title(role, p, result)}\nsuccess {_pct(s['success'])} of cells; in the window "
+                     f"{_pct(s['success_in_window'])} (force side {_pct(s['success_in_window_force'])}, position "
+                     f"side {_pct(s['success_in_window_position'])})", fontsize=8.5)
+    cax = fig.add_subplot(gs[0, n])
+    fig.colorbar(mesh, cax=cax).set_label("success rate (held to the end, intact)", fontsize=8)
+    if row:
+        _density_row(fig, gs, row, E, roles, cmap, result)
+    handles = [Line2D([], [], color="black", ls="--", lw=1.6),
+               Line2D([], [], color=_WINDOW_COLOUR, lw=2.4),
+               Patch(fill=False, ec=_CLASS_COLOUR, ls=":", lw=1.3),
+               Line2D([], [], ls="", marker="$d$", color="#5a1010", ms=7),
+               Line2D([], [], ls="", marker="$s$", color="#6a4a00", ms=7)]
+    labels = [f"regime boundary phi = 1/2 at {result['regime_pressure_kpa']:g} kPa (force- | position-controlled)",
+              "feasible window: where the oracle succeeds",
+              "catalogue class, default use case (E x R box)",
+              "failed: damaged (crushed or overstressed)", "failed: slipped (dropped)"]
+    fig.legend(handles, labels, loc="lower center", ncol=3, fontsize=8, frameon=False, bbox_to_anchor=(0.5, 0.0))
+    fig.suptitle(f"Grasp success over object modulus x radius: {result['thickness_rule']}, "
+                 f"rho = {result['density_kg_m3']:g} kg/m^3, "
+                 f"failure strain {result['failure_strain']:g}, failure stress 3 eps_f mu_obj "
+                 f"({result['damage_rule']} rule), {result['episodes']} episode(s) per cell", fontsize=10)
+    inch = 1.0 / fig.get_figheight()
+    fig.subplots_adjust(left=0.05, right=0.955, top=1.0 - 1.05 * inch, bottom=1.05 * inch)
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+    return path
+
+
+def _title(role: str, p: dict[str, Any], result: dict[str, Any]) -> str:
+    if role == "oracle":
+        return "oracle (knows the object; best constant pressure)"
+    if p.get("env_id") == RIGID_ENV and result.get("jaw_nominal_radius_mm"):
+        return f"blind: {p['label']},\nclosure past a nominal R = {result['jaw_nominal_radius_mm']:.3g} mm surface"
+    return f"blind: {p['label']}"
+
+
+def _regime_labels(ax, fE, fR, phi) -> None:
+    """'force-controlled' left of the boundary and 'position-controlled' right of it, at the lowest radius."""
+    j = np.where(phi[0] >= 0.5)[0]
+    if j.size == 0:
+        return
+    e_b = fE[j[0]]
+    y = fR[0] + 0.035 * (fR[-1] - fR[0])
+    kw = dict(fontsize=7.5, va="bottom", zorder=9, bbox=dict(boxstyle="round,pad=0.15", fc="white", ec="none",
+                                                             alpha=0.8))
+    ax.text(e_b / 1.25, y, "force-\ncontrolled", ha="right", **kw)
+    ax.text(e_b * 1.25, y, "position-\ncontrolled", ha="left", **kw)
+
+
+def _density_row(fig, gs, row, E, roles, cmap, result) -> None:
+    import matplotlib.ticker
+    D = np.asarray(row["density_kg_m3"], float)
+    xe, de = _edges(E, True), _edges(D, True)
+    pf = row["phi_fine"]
+    fE, fphi = np.asarray(pf["youngs_modulus_kpa"], float), np.array([np.nan if v is None else v for v in pf["phi"]])
+    cross = fE[np.where(fphi >= 0.5)[0][0]] if (fphi >= 0.5).any() and (fphi < 0.5).any() else None
+    window = _arr(row["policies"]["oracle"]["success"]) >= 0.5
+    for k, role in enumerate(roles):
+        p = row["policies"][role]
+        ax = fig.add_subplot(gs[1, k])
+        ax.pcolormesh(xe, de, _arr(p["success"]), cmap=cmap, vmin=0.0, vmax=1.0, shading="flat", zorder=1)
+        _marks(ax, E, D, p)
+        if cross is not None:
+            ax.axvline(cross, color="black", ls="--", lw=1.6, zorder=5)
+        _outline(ax, window, xe, de, colors=_WINDOW_COLOUR, linewidths=2.4, zorder=6)
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlim(xe[0], xe[-1])
+        ax.set_ylim(de[0], de[-1])
+        ax.set_yticks(D)
+        ax.set_yticklabels([f"{d:g}" for d in D])
+        ax.yaxis.set_minor_locator(matplotlib.ticker.NullLocator())
+        ax.set_xlabel("object Young's modulus E (kPa)")
+        if k == 0:
+            ax.set_ylabel("density (kg/m^3)")
+        s = _arr(p["success"])
+        h = row["radius_mm"] * result["thickness_ratio"]
+        ax.set_title(f"{role} at R = {row['radius_mm']:g} mm (H = {h:g} mm); success over E by density:\n"
+                     + ", ".join(f"{d:g} kg/m^3: {np.nanmean(s[i]):.0%}" for i, d in enumerate(D)), fontsize=8)
+
+
+# ---------------------------------------------------------------------------------------------
+# Command line
+# ---------------------------------------------------------------------------------------------
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--out", type=Path, default=Path("map"), help="output directory: map.json, map.png "
+                                                                        "(default ./map)")
+    parser.add_argument("--grid", type=int, nargs=2, default=[19, 11], metavar=("NE", "NR"),
+                        help="cells: NE log-spaced moduli x NR radii (default 19 11: 4 per decade, 2.5 mm)")
+    parser.add_argument("--e-range", type=float, nargs=2, default=list(E_RANGE_KPA), metavar=("LO", "HI"),
+                        help="Young's modulus range, kPa (default 0.1 3000)")
+    parser.add_argument("--r-range", type=float, nargs=2, default=list(R_RANGE_MM), metavar=("LO", "HI"),
+                        help="radius range, mm (default 15 40); H = R/4")
+    parser.add_argument("--episodes", type=int, default=1, help="episodes per policy and cell (default 1)")
+    parser.add_argument("--seed", type=int, default=0, help="base seed, shared by every policy (default 0)")
+    parser.add_argument("--density", type=float, nargs="+", default=[1000.0, 300.0, 30.0], metavar="RHO",
+                        help="object density, kg/m^3: the first is the map's; with more, a second row charts "
+                             "E x density at --density-radius (default 1000 300 30)")
+    parser.add_argument("--density-radius", type=float, default=25.0, help="radius of the density row, mm "
+                                                                           "(default 25)")
+    parser.add_argument("--failure-strain", type=float, default=0.3, help="object failure strain (default 0.3); "
+                                                                          "failure stress 3 eps_f mu_obj")
+    parser.add_argument("--blind", default="best-ramp", metavar="SPEC",
+                        help="the blind pressure schedule (default best-ramp: agents/best_ramp.json)")
+    parser.add_argument("--rigid", default="rigid", metavar="SPEC",
+                        help="the rigid jaw (default rigid: agents/best_rigid.json, at the default task's travel)")
+    parser.add_argument("--jaw-nominal-mm", type=float, default=None, metavar="R",
+                        help="radius the rigid jaw's closure counts from (default: the default task's nominal "
+                             "object, 27.5 mm)")
+    parser.add_argument("--no-plot", action="store_true", help="skip map.png")
+    add_progress_argument(parser)
+
+
+def run(args: argparse.Namespace) -> int:
+    ne, nr = args.grid
+    try:
+        if ne < 1 or nr < 1:
+            raise ValueError(f"--grid needs NE, NR >= 1, got {ne} {nr}")
+        (e0, e1), (r0, r1) = args.e_range, args.r_range
+        if not 0 < e0 <= e1 or not 0 < r0 <= r1:
+            raise ValueError("--e-range and --r-range need 0 < LO <= HI")
+        if any(d <= 0 for d in args.density) or not args.failure_strain > 0:
+            raise ValueError("--density and --failure-strain must be > 0")
+        E = np.logspace(math.log10(e0), math.log10(e1), ne) if ne > 1 else np.array([math.sqrt(e0 * e1)])
+        R = np.linspace(r0, r1, nr) if nr > 1 else np.array([0.5 * (r0 + r1)])
+        result = success_map(E, R, args.density[0], args.failure_strain, args.episodes, args.seed, args.progress,
+                             densities=args.density, density_radius_mm=args.density_radius, blind=args.blind,
+                             rigid=args.rigid, jaw_nominal_mm=args.jaw_nominal_mm)
+    except ValueError as exc:
+        raise SystemExit(f"pneunet-grasp map: {exc}") from None
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    (out / "map.json").write_text(json.dumps(result, indent=1, allow_nan=False) + "\n")
+    written = [out / "map.json"]
+    if not args.no_plot:
+        written.append(plot_map(result, out / "map.png"))
+    print(_report(result))
+    print("wrote " + ", ".join(str(p) for p in written))
+    return 0
+
+
+def _report(result: dict[str, Any]) -> str:
+    s = result["summary"]
+    E, R = result["youngs_modulus_kpa"], result["radius_mm"]
+    n_ep = len(result["roles"]) * s["cells"] * result["episodes"]
+    if result["density_row"]:
+        n_ep += len(result["roles"]) * len(result["density_row"]["density_kg_m3"]) * len(E) * result["episodes"]
+    lines = [f"pneunet-grasp map: E {E[0]:g}-{E[-1]:g} kPa x R {R[0]:g}-{R[-1]:g} mm ({len(E)} x {len(R)} cells, "
+             f"{result['thickness_rule']}, rho = {result['density_kg_m3']:g} kg/m^3, "
+             f"eps_f = {result['failure_strain']:g}), "
+             f"{n_ep} episodes in {result['elapsed_s']:.1f} s",
+             f"feasible window (oracle succeeds): {s['window_cells']} of {s['cells']} cells "
+             f"({s['window_force_cells']} force-controlled, {s['window_position_cells']} position-controlled)",
+             f"  {'policy':<10} {'all':>5} {'window':>7} {'force':>6} {'position':>8} {'grasps both':>12}  label"]
+    for role in result["roles"]:
+        r = s[role]
+        lines.append(f"  {role:<10} {_pct(r['success']):>5} {_pct(r['success_in_window']):>7} "
+                     f"{_pct(r['success_in_window_force']):>6} {_pct(r['success_in_window_position']):>8} "
+                     f"{'yes' if r['grasps_both'] else 'no':>12}  {result['policies'][role]['label']}")
+    if result["density_row"]:
+        row = result["density_row"]
+        lines.append(f"density row at R = {row['radius_mm']:g} mm (success over E, per density):")
+        for role in result["roles"]:
+            rates = _arr(row["policies"][role]["success"])
+            lines.append(f"  {role:<10} " + ", ".join(f"{d:g} kg/m^3: {np.nanmean(rates[i]):.0%}"
+                                                      for i, d in enumerate(row["density_kg_m3"])))
+    return "\n".join(lines)

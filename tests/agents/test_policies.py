@@ -1,0 +1,174 @@
+"""SB3 models in the policy registry: statistics as numbers, no pickle loaded unless named, the shipped model."""
+
+from __future__ import annotations
+
+import pickle
+import shutil
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from agents.policies import (
+    NormalizationStats,
+    RunningStats,
+    SB3Policy,
+    convert_vecnormalize,
+    make_policy,
+    vecnormalize_path,
+)
+
+MODELS = Path(__file__).resolve().parents[2] / "agents" / "models"
+SHIPPED = MODELS / "ppo_pneunet.zip"
+
+# The shipped model's outputs on p/p_max = 0, 0.05, ..., 1, computed with its statistics loaded from the old
+# agents/models/ppo_pneunet_vecnormalize.pkl (before it was converted to ppo_pneunet_vecnormalize.json and removed).
+OLD_SETPOINTS = [0.1858729124069214, 0.20918190479278564, 0.23868298530578613, 0.2759345769882202,
+                 0.3212904930114746, 0.37267565727233887, 0.42515480518341064, 0.47232651710510254,
+                 0.5087788105010986, 0.5313961505889893, 0.5387016534805298, 0.5295640230178833, 0.5029959678649902,
+                 0.4599111080169678, 0.40568792819976807, 0.3498727083206177, 0.30153167247772217,
+                 0.26499462127685547, 0.23991632461547852, 0.22374224662780762, 0.21369493007659912]
+OLD_ACTIONS = [1.0] * 14 + [0.056879520416259766] + [-1.0] * 6
+# ... and the pickle's statistics (a VecNormalize with norm_obs=False, norm_reward=True).
+OLD_STATS = {"norm_obs": False, "norm_reward": True, "clip_obs": 10.0, "clip_reward": 10.0, "epsilon": 1e-08,
+             "gamma": 0.999, "ret_rms": (0.20426301874185668, 0.17352485582552413, 2600000.0001)}
+
+
+class _Payload:
+    """A pickle whose loading creates a marker file (what an attacker's ``vecnormalize.pkl`` would do, and worse)."""
+
+    def __init__(self, marker: Path) -> None:
+        self.marker = marker
+
+    def __reduce__(self):
+        return (exec, (f"open({str(self.marker)!r}, 'w').close()",))
+
+
+def _model_copy(folder: Path) -> Path:
+    folder.mkdir(parents=True, exist_ok=True)
+    shutil.copyfile(SHIPPED, folder / "m.zip")
+    shutil.copyfile(SHIPPED.with_suffix(".json"), folder / "m.json")
+    return folder / "m.zip"
+
+
+def test_shipped_statistics_are_numbers_and_predictions_unchanged():
+    pytest.importorskip("stable_baselines3")
+    assert not (MODELS / "ppo_pneunet_vecnormalize.pkl").exists() and not list(MODELS.glob("*.pkl"))
+    stats_path = vecnormalize_path(SHIPPED)
+    assert stats_path == MODELS / "ppo_pneunet_vecnormalize.json"
+    stats = NormalizationStats.load(stats_path)
+    rms = OLD_STATS["ret_rms"]
+    assert (stats.ret_rms.mean, stats.ret_rms.var, stats.ret_rms.count) == rms and stats.obs_rms is None
+    assert all(getattr(stats, k) == v for k, v in OLD_STATS.items() if k != "ret_rms")
+
+    pol = SB3Policy(SHIPPED)
+    assert pol.vecnormalize_path == stats_path and isinstance(pol._norm, NormalizationStats)
+    assert pol.action_mode == "setpoint"
+    obs = (np.arange(21, dtype=np.float32) / 20).reshape(-1, 1)
+    u, _ = pol.model.predict(pol.normalize(obs), deterministic=True)
+    np.testing.assert_array_equal(np.asarray(u, np.float32).ravel(), np.array(OLD_SETPOINTS, np.float32))
+    np.testing.assert_array_equal(pol(obs).ravel(), np.array(OLD_ACTIONS, np.float32))
+
+
+def test_malicious_pickle_beside_a_model_is_not_loaded(tmp_path):
+    pytest.importorskip("stable_baselines3")
+    model = _model_copy(tmp_path / "m")
+    marker = tmp_path / "pwned"
+    for name in ("m_vecnormalize.pkl", "vecnormalize.pkl"):
+        (model.parent / name).write_bytes(pickle.dumps(_Payload(marker)))
+
+    with pytest.warns(UserWarning, match="not loading"):
+        pol = SB3Policy(model)
+    assert not marker.exists() and pol._norm is None and pol.vecnormalize_path is None
+    with pytest.warns(UserWarning, match="not loading"):
+        make_policy(str(model))
+    assert not marker.exists()
+
+    # with the JSON statistics beside it: those are read, the pickles still are not (and no warning)
+    shutil.copyfile(vecnormalize_path(SHIPPED), model.parent / "m_vecnormalize.json")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        pol = SB3Policy(model)
+    assert not marker.exists() and pol.vecnormalize_path == model.parent / "m_vecnormalize.json"
+
+    # named explicitly, a pickle is loaded (this one runs: the test above is not vacuous)
+    SB3Policy(model, vecnormalize=model.parent / "vecnormalize.pkl")
+    assert marker.exists()
+
+
+def test_normalization_stats_match_vecnormalize_bit_for_bit(tmp_path):
+    """Statistics with observation normalisation on: the JSON form normalises exactly as the VecNormalize pickle,
+    and a model predicts the same with either (the pickle named explicitly)."""
+    pytest.importorskip("stable_baselines3")
+    import gymnasium as gym
+    from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
+
+    import pneunet_env  # noqa: F401
+
+    vn = VecNormalize(DummyVecEnv([lambda: gym.make("PneuNetGrasp-v0")]), gamma=0.99, clip_obs=2.5)
+    rng = np.random.default_rng(3)
+    vn.obs_rms.update(rng.uniform(0.1, 0.6, (50, 1)))
+    vn.ret_rms.update(rng.normal(size=20))
+    pkl = tmp_path / "vn.pkl"
+    vn.save(str(pkl))
+    js = convert_vecnormalize(pkl, tmp_path / "vn.json")
+    stats = NormalizationStats.load(js)
+    assert stats.norm_obs and stats.clip_obs == 2.5 and stats.gamma == 0.99
+    np.testing.assert_array_equal(stats.obs_rms.mean, vn.obs_rms.mean)
+    obs = rng.uniform(-0.5, 1.5, (200, 1)).astype(np.float32)
+    expected = vn.normalize_obs(obs)
+    got = stats.normalize_obs(obs)
+    assert got.dtype == expected.dtype == np.float32
+    np.testing.assert_array_equal(got, expected)
+    assert np.abs(got).max() == 2.5  # the clip is exercised
+
+    model = _model_copy(tmp_path / "m")
+    grid = (np.arange(41, dtype=np.float32) / 40).reshape(-1, 1)
+    from_json = SB3Policy(model, vecnormalize=js)(grid)
+    from_pickle = SB3Policy(model, vecnormalize=pkl)(grid)
+    np.testing.assert_array_equal(from_json, from_pickle)
+    assert not np.array_equal(from_json, SB3Policy(model, vecnormalize=False)(grid))  # the statistics matter
+    vn.close()
+
+
+def test_explicit_statistics_in_a_policy_spec(tmp_path):
+    pytest.importorskip("stable_baselines3")
+    model = _model_copy(tmp_path / "m")
+    rms = RunningStats(np.array([0.4]), np.array([0.01]), 9.0)
+    stats = NormalizationStats(True, False, 10.0, 10.0, 1e-8, 0.99, rms)
+    path = stats.save(tmp_path / "elsewhere" / "stats.json")
+    entry = make_policy(f"{model}:vecnormalize={path},action=rate")
+    assert entry.policy.vecnormalize_path == path and entry.policy.action_mode == "rate"
+    with pytest.raises(ValueError, match="unknown parameter"):
+        make_policy(f"{model}:colour=blue")
+    with pytest.raises(ValueError, match="no such model"):
+        make_policy(str(tmp_path / "missing.zip") + ":action=rate")
+
+
+@pytest.mark.parametrize("text, match", [
+    ("[1, 2]", "not a normalisation statistics file"),
+    ('{"format": "pneunet_env/vecnormalize-stats/1", "norm_obs": true}', "malformed"),
+    ("{", "cannot read"),
+])
+def test_bad_statistics_files_are_rejected(tmp_path, text, match):
+    path = tmp_path / "s.json"
+    path.write_text(text)
+    with pytest.raises(ValueError, match=match):
+        NormalizationStats.load(path)
+
+
+def test_statistics_save_is_atomic(tmp_path, monkeypatch):
+    import agents.policies as pol
+
+    stats = NormalizationStats(False, True, 10.0, 10.0, 1e-8, 0.999, None, None)
+    path = stats.save(tmp_path / "s.json")
+    before = path.read_bytes()
+
+    def boom(src, dst):
+        raise OSError("rename failed")
+
+    monkeypatch.setattr(pol.os, "replace", boom)
+    with pytest.raises(OSError, match="rename failed"):
+        NormalizationStats(True, True, 1.0, 1.0, 1e-8, 0.9, None, None).save(path)
+    assert path.read_bytes() == before and [p.name for p in tmp_path.iterdir()] == ["s.json"]
