@@ -51,7 +51,8 @@ STIFF_MIN = 1e-3
 """The paper's stiff regime: ``k~ >= 1e-3`` (a 15 kPa elastomer)."""
 
 DEFAULT_POLICIES = ("best-ramp", "oracle", "rigid")
-DEFAULT_MODEL = Path(__file__).resolve().parent / "models" / "ppo_pneunet.zip"
+DEFAULT_MODEL = Path(__file__).resolve().parent / "models" / "ppo_kitchen.zip"
+"""PPO trained on the default task (pressure only); ``models/ppo_pneunet.zip`` was trained on the paper's task."""
 
 
 # ---------------------------------------------------------------------------------------------
@@ -435,7 +436,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--policy", action="append", default=None, metavar="NAME_OR_MODEL_PATH",
                         help="a policy (repeatable): ramp, step, best-ramp, oracle, rigid (optionally "
                              "NAME:key=value,...), or an SB3 model .zip. Default: best-ramp, oracle, rigid, and "
-                             "agents/models/ppo_pneunet.zip if present")
+                             "agents/models/ppo_kitchen.zip (PPO on the default task) if present")
     parser.add_argument("--stiffness-grid", type=int, default=25, help="log-spaced k~ values (default 25)")
     parser.add_argument("--episodes", type=int, default=2, help="episodes per policy and k~ (default 2)")
     parser.add_argument("--out", type=Path, default=Path("evaluation"), help="output directory (default ./evaluation)")

@@ -5,7 +5,7 @@
 *setpoint*, ``(u + 1)/2`` of ``p_max``, and the env receives the increment that moves the pressure toward it as fast
 as the env allows (:func:`setpoint_to_rate`: a proportional regulator with a rate limit). The regulator reads only
 the pressure (the observation's first entry) and the command, so an agent behind it is as blind as before. This is
-what the trained PPO agent uses (``configs/train/ppo.yaml``); why: the README, "A trained agent".
+what the trained PPO agent uses (``configs/train/ppo.yaml``); why: docs/results-paper.md, "A trained agent".
 
 One formula, two forms:
 

@@ -142,7 +142,7 @@ def run(args: argparse.Namespace) -> int:
     k_feas = feasible_stiffness(cfg)
     print(f"\nBelow k~ = {k_feas:.2g} (mu_obj = {k_feas / unit_mu:.3g} kPa) no state of any gripper both holds the "
           "object and spares it: the grip needs F = k_obj delta >= rho g H / (faces mu_f), which takes an "
-          "indentation past the crush depth. See the README's Results.")
+          "indentation past the crush depth. See docs/results-paper.md.")
     print(f"\n{len(results)} episodes in {elapsed:.1f} s")
     if args.json is not None:
         args.json.parent.mkdir(parents=True, exist_ok=True)

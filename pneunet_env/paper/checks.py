@@ -4,7 +4,7 @@ Every check is a function of the figure tables (:func:`pneunet_env.paper.figures
 read back with :func:`pneunet_env.paper.figures.load_tables`) that returns a :class:`CheckResult`: the
 statement (quoted or paraphrased, with its section), the number(s) this package measures for it, whether
 it holds in this model, and whether it is expected to (a statement the model contradicts is kept, marked ✗,
-with the reason in its note). :func:`render_markdown` makes the README's table.
+with the reason in its note). :func:`render_markdown` makes the statements table (docs/figures.md).
 
 Operational definitions (all on the loading branch, exact path tangents from the ``dcurvature_dpressure``
 column, pressure grid of the figures):
@@ -765,7 +765,7 @@ CHECKS: tuple[Callable[[Tables], CheckResult], ...] = (
     check_base_little_change,
     check_converged,
 )
-"""Every check, in the order of the README's table."""
+"""Every check, in the order of the statements table (docs/figures.md)."""
 
 
 def run_checks(tables: Tables) -> list[CheckResult]:
@@ -781,7 +781,7 @@ def _cell(text: str) -> str:
 
 
 def render_markdown(results: Sequence[CheckResult]) -> str:
-    """The README's table: statement (with its source), measured numbers, ✓/✗; notes as footnotes below."""
+    """The statements table (docs/figures.md): statement (source), measured numbers, ✓/✗; notes as footnotes."""
     lines = [
         "| # | statement (source) | measured in this package | holds |",
         "|---|---|---|:-:|",

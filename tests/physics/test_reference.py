@@ -54,3 +54,39 @@ def test_reference_at_zero_pressure_is_rest():
 def test_reference_path_polishes_every_point():
     ks, ss = reference_path([0.2, 0.5, 0.8], 1e-3, 0.02, ActuatorParams(), digits=30, refine=5)
     assert len(ks) == 3 and all(0.0 < k < 0.03 for k in ks)
+
+
+def _catalogue_extremes():
+    """Each in-model catalogue class at its stiffest corner (largest k~: top modulus, smallest radius, thickest
+    layer) and at its softest, as ``(k~, w kappa_obj)``: the default task's hardest and easiest contacts."""
+    from pneunet_env.catalogue import load_catalogue
+    from pneunet_env.physics.contact import winkler_stiffness
+
+    out = []
+    for cls in load_catalogue().values():
+        if not cls.in_annulus_model:
+            continue
+        for mu, r, h in ((cls.shear_modulus_kpa[1], cls.radius_mm[0], cls.thickness_mm[1]),
+                         (cls.shear_modulus_kpa[0], cls.radius_mm[1], cls.thickness_mm[0])):
+            out.append((cls.name, winkler_stiffness(mu, h, 1e3 / r, 5.0, 50.0), 5.0 / r))
+    return out
+
+
+@pytest.mark.parametrize("name, kobj, c", _catalogue_extremes(), ids=lambda v: v if isinstance(v, str) else "")
+def test_catalogue_extremes_converge_and_match_30_digits(name, kobj, c):
+    """The catalogue's stiffest (k~ up to about 40) and softest objects: loading to 60 kPa in the env's 3 kPa steps
+    and back, every state converged (zero gradient, positive-definite Hessian), the end states at 30 digits."""
+    import numpy as np
+
+    from pneunet_env import load_path
+    from pneunet_env.physics.solver import ACCEPT_GTOL
+
+    params = ActuatorParams()
+    ps = np.r_[np.arange(0.06, 1.2001, 0.06), np.arange(1.14, -1e-9, -0.06).clip(0.0)]
+    path = load_path(ps, kobj, c, params)
+    assert path.converged.all(), name
+    assert max(e.gradient_norm for e in path.equilibria) <= ACCEPT_GTOL
+    assert min(e.min_eigenvalue for e in path.equilibria) > 0.0
+    top = path.equilibria[19]  # p~ = 1.2
+    k, s = reference_minimum(1.2, kobj, c, params, top.state, digits=30)
+    assert abs(top.curvature - k) <= 1e-9 * abs(k) and abs(top.side_strain - s) <= 1e-9 * abs(s)
