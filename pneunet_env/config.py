@@ -356,6 +356,10 @@ def _float(name: str, value: Any) -> float:
     return check_finite(f"config key {name!r}", value)
 
 
+_INT_MAX = {"grip_faces": 16, "squeeze_steps": 1_000_000, "hold_steps": 1_000_000}
+"""Upper bounds of integer keys not bounded by their section (a pinch has a few faces; an episode a bounded length)."""
+
+
 def _int(name: str, value: Any, minimum: int = 1) -> int:
     if isinstance(value, bool):
         raise ValueError(f"config key {name!r} must be an integer, got {value!r}")
@@ -367,6 +371,8 @@ def _int(name: str, value: Any, minimum: int = 1) -> int:
         raise ValueError(f"config key {name!r} must be an integer, got {value!r}")
     if i < minimum:
         raise ValueError(f"config key {name!r} must be >= {minimum}, got {value!r}")
+    if name in _INT_MAX and i > _INT_MAX[name]:
+        raise ValueError(f"config key {name!r} must be <= {_INT_MAX[name]}, got {value!r}")
     return i
 
 

@@ -57,6 +57,7 @@ from pneunet_env.config import LOG_UNIFORM_FIELDS, RANGE_FIELDS, EnvConfig
 from pneunet_env.objects import GraspObject
 from pneunet_env.physics.batched import solve_batch
 from pneunet_env.physics.contact import CONVERGED_CONTACT_RATIO, contact_ratio, winkler_stiffness
+from pneunet_env.physics.params import MIN_OBJECT_CURVATURE
 from pneunet_env.physics.solver import (
     Equilibrium,
     equilibrium,
@@ -279,15 +280,20 @@ def object_from_uniforms(
         failure_strain=values["object_failure_strain"],
         scales=config.scales,
     )
-    if not batch:
-        if "object_stiffness" in pins:
-            obj = GraspObject.from_stiffness(_pin("object_stiffness", pins["object_stiffness"], shape), **common)
+    try:
+        if not batch:
+            if "object_stiffness" in pins:
+                obj = GraspObject.from_stiffness(_pin("object_stiffness", pins["object_stiffness"], shape), **common)
+            else:
+                obj = GraspObject.from_material(values["object_shear_modulus_kpa"], **common)
+        elif "object_stiffness" in pins:
+            obj = _batch_object(None, _pin("object_stiffness", pins["object_stiffness"], shape, batch), **common)
         else:
-            obj = GraspObject.from_material(values["object_shear_modulus_kpa"], **common)
-    elif "object_stiffness" in pins:
-        obj = _batch_object(None, _pin("object_stiffness", pins["object_stiffness"], shape, batch), **common)
-    else:
-        obj = _batch_object(values["object_shear_modulus_kpa"], None, **common)
+            obj = _batch_object(values["object_shear_modulus_kpa"], None, **common)
+    except ValueError as exc:
+        if pins and not str(exc).startswith("reset option"):  # a pin that does not fit the drawn object: name it
+            raise ValueError(f"reset option(s) {sorted(pins)}: {exc}") from None
+        raise
     return obj if extra is None else dataclasses.replace(obj, **extra)
 
 
@@ -325,6 +331,7 @@ def _batch_object(shear_modulus_kpa, stiffness, thickness_mm, curvature_per_m, d
             k = given
         c = kap * scales.width_mm * 1e-3
         _first_bad("curvature_per_m", kap, c >= np.pi, "gives w kappa_obj >= pi")
+        _first_bad("curvature_per_m", kap, c < MIN_OBJECT_CURVATURE, f"gives w kappa_obj < {MIN_OBJECT_CURVATURE:g}")
     return GraspObject(
         shear_modulus_kpa=mu,
         thickness_mm=H_mm,
@@ -350,6 +357,8 @@ def _pin(key: str, value: Any, shape: tuple[int, ...], batch: bool = False):
         raise ValueError(f"reset option {key!r} must be finite, got {value!r}")
     if np.any(a < 0.0):
         raise ValueError(f"reset option {key!r} must be >= 0, got {value!r}")
+    if key not in ("object_stiffness", "object_shear_modulus_kpa") and np.any(a == 0.0):
+        raise ValueError(f"reset option {key!r} must be > 0 (a size, density or strain), got {value!r}")
     if not batch:
         if a.ndim != 0:
             raise ValueError(f"reset option {key!r} must be a single number, got {value!r}")

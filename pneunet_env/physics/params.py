@@ -11,7 +11,7 @@ import dataclasses
 import math
 from dataclasses import dataclass
 
-__all__ = ["ActuatorParams", "check_finite", "check_object", "check_positive"]
+__all__ = ["ActuatorParams", "MIN_OBJECT_CURVATURE", "check_finite", "check_object", "check_positive"]
 
 
 def check_finite(name: str, value: float) -> float:
@@ -35,6 +35,11 @@ def check_positive(name: str, value: float) -> float:
     return x
 
 
+MIN_OBJECT_CURVATURE = 1e-6
+"""The flattest object arc ``w kappa_obj`` accepted: the contact terms divide by ``kappa_obj^2``; below 1e-6 (a radius
+of a million chamber widths, 5 km at the default actuator) they leave double precision's useful range."""
+
+
 def check_object(object_stiffness: float, object_curvature: float) -> tuple[float, float]:
     """Validate the dimensionless object ``(k~_obj, w kappa_obj)``; return them as floats.
 
@@ -45,8 +50,10 @@ def check_object(object_stiffness: float, object_curvature: float) -> tuple[floa
     if k < 0.0:
         raise ValueError(f"object_stiffness (k~_obj = k_obj w/mu) must be >= 0, got {object_stiffness!r}")
     c = check_finite("object_curvature", object_curvature)
-    if not 0.0 < c < math.pi:
-        raise ValueError(f"object_curvature (w kappa_obj) must be in (0, pi), got {object_curvature!r}")
+    if not MIN_OBJECT_CURVATURE <= c < math.pi:
+        raise ValueError(f"object_curvature (w kappa_obj) must be in [{MIN_OBJECT_CURVATURE:g}, pi), got "
+                         f"{object_curvature!r} (below: a radius over a million chamber widths, flat to double "
+                         "precision in the contact terms)")
     return k, c
 
 

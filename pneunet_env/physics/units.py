@@ -72,6 +72,9 @@ def object_modulus_from_stiffness(
 ) -> float:
     """Inverse of :func:`object_stiffness_from_material`: the shear modulus (kPa) giving ``k~``."""
     unit = object_stiffness_from_material(1.0, thickness_mm, curvature_per_m, scales)
+    if not unit > 0.0:  # so flat an arc (H kappa_obj ~ 1e-16) that eq. 3.2 rounds to no stiffness at all
+        raise ValueError(f"curvature_per_m = {curvature_per_m!r} with thickness_mm = {thickness_mm!r} gives an object "
+                         "with no stiffness per modulus in double precision (eq. 3.2); use a larger curvature")
     k = check_finite("stiffness", stiffness)
     if k < 0.0:
         raise ValueError(f"stiffness (k~) must be >= 0, got {stiffness!r}")
@@ -111,8 +114,8 @@ class PhysicalActuator:
         except ValueError as exc:
             msg = str(exc)
             named = [phys for dim, phys in _PHYSICAL_NAMES.items() if dim in msg.split(" (")[0] or dim + " " in msg]
-            raise ValueError(f"{', '.join(named) or 'actuator'} (relative to width_mm = {self.width_mm:g}): {msg}") \
-                from None
+            raise ValueError(f"{', '.join(named) or 'actuator'} (relative to width_mm = {self.width_mm:g}, "
+                             f"shear_modulus_kpa = {self.shear_modulus_kpa:g}): {msg}") from None
 
     @property
     def scales(self) -> Scales:
