@@ -31,6 +31,7 @@ def quick_run(tmp_path_factory):
     return rc, out, records, details
 
 
+@pytest.mark.slow  # the benchmark's end-to-end quick run (its fixture takes 5-11 s)
 def test_quick_run_writes_its_outputs(quick_run):
     rc, out, records, _ = quick_run
     assert rc == 0
@@ -42,6 +43,7 @@ def test_quick_run_writes_its_outputs(quick_run):
     assert isinstance(records, list) and records
 
 
+@pytest.mark.slow  # the benchmark's end-to-end quick run (its fixture takes 5-11 s)
 def test_records_have_the_documented_fields(quick_run):
     _, _, records, details = quick_run
     for r in records:
@@ -58,6 +60,7 @@ def test_records_have_the_documented_fields(quick_run):
     assert {s["name"] for s in details["scenes"]} == scenes
 
 
+@pytest.mark.slow  # the benchmark's end-to-end quick run (its fixture takes 5-11 s)
 def test_default_solver_never_fails_and_is_accurate(quick_run):
     _, _, records, details = quick_run
     default = [r for r in records if r["default"]]
@@ -73,6 +76,7 @@ def test_default_solver_never_fails_and_is_accurate(quick_run):
             assert row["failures"] == 0 and row["error"] <= 1e-9 and row["loop"] == "captured", row
 
 
+@pytest.mark.slow  # the benchmark's end-to-end quick run (its fixture takes 5-11 s)
 def test_other_methods_fail_somewhere_and_it_is_recorded(quick_run):
     _, _, records, details = quick_run
     failed = [r for r in records if r["failure"] is not None]
@@ -88,6 +92,7 @@ def test_other_methods_fail_somewhere_and_it_is_recorded(quick_run):
     assert len(kinds & set(solvers.FAILURES)) >= 2
 
 
+@pytest.mark.slow  # the benchmark's end-to-end quick run (its fixture takes 5-11 s)
 def test_auto_model_records_stay_within_its_bound(quick_run):
     _, _, records, details = quick_run
     auto = [r for r in records if r["method"] == "auto model"]
@@ -106,6 +111,7 @@ def test_auto_model_records_stay_within_its_bound(quick_run):
     assert 0.05 < details["auto"]["linear_error_coefficient"] < 0.2
 
 
+@pytest.mark.slow  # the benchmark's end-to-end quick run (its fixture takes 5-11 s)
 def test_map_and_step_size_cover_every_method(quick_run):
     _, _, records, details = quick_run
     methods = list(dict.fromkeys(r["method"] for r in records))

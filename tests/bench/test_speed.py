@@ -25,6 +25,7 @@ def quick_run(tmp_path_factory):
     return rc, out, buf.getvalue(), json.loads((out / "speed.json").read_text())
 
 
+@pytest.mark.slow  # the benchmark's end-to-end quick run (its fixture takes 5-11 s)
 def test_quick_run_prints_its_table_and_writes_json_and_png(quick_run):
     rc, out, text, _ = quick_run
     assert rc == 0
@@ -37,6 +38,7 @@ def test_quick_run_prints_its_table_and_writes_json_and_png(quick_run):
     assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 20_000
 
 
+@pytest.mark.slow  # the benchmark's end-to-end quick run (its fixture takes 5-11 s)
 def test_json_holds_every_figure(quick_run):
     _, _, _, res = quick_run
     single = res["single_env"]
@@ -60,6 +62,7 @@ def test_json_holds_every_figure(quick_run):
     assert res["targets"] == speed.TARGETS and math.isfinite(res["wall_s"])
 
 
+@pytest.mark.slow  # the benchmark's end-to-end quick run (its fixture takes 5-11 s)
 def test_table_and_plot_from_a_result(tmp_path, quick_run):
     _, _, text, res = quick_run
     assert speed.format_table(res) in text
