@@ -113,13 +113,21 @@ def bench_render(frames: int = 300, repeats: int = 3, seed: int = 0) -> dict[str
     }
 
 
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--frames", type=int, default=300, help="step + render pairs per round (default 300)")
+    parser.add_argument("--repeats", type=int, default=3, help="rounds; the best is kept (default 3)")
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
         prog="python -m pneunet_env.bench.render_speed", description=__doc__.split("\n")[0]
     )
-    parser.add_argument("--frames", type=int, default=300, help="step + render pairs per round (default 300)")
-    parser.add_argument("--repeats", type=int, default=3, help="rounds; the best is kept (default 3)")
-    args = parser.parse_args(argv)
+    add_arguments(parser)
+    return run(parser.parse_args(argv))
+
+
+def run(args: argparse.Namespace) -> int:
+    """``pneunet-grasp bench render``: frames/s of step + render, against CartPole measured in the same run."""
     r = bench_render(args.frames, args.repeats)
     h, w, _ = r["pneunet_frame_shape"]
     print(f"PneuNetGrasp-v0 step + render ({w} x {h}): {r['pneunet_frames_per_s']:8.1f} frames/s "

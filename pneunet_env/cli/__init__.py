@@ -26,6 +26,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "figures": ("pneunet_env.paper.command", "regenerate the paper's figures (PNG + CSV) and check its statements"),
     "bench speed": ("pneunet_env.bench.speed", "speed benchmark against CartPole (table, JSON, PNG)"),
     "bench solvers": ("pneunet_env.bench.solvers", "solver study: speed vs accuracy, stability map"),
+    "bench render": ("pneunet_env.bench.render_speed", "rgb_array frames/s (step + render) against CartPole"),
     "evaluate": ("agents.evaluate", "evaluate policies over a stiffness grid (table, JSON, PNGs)"),
     "train": ("agents.train", "train an SB3 agent from a YAML config"),
     "search": ("agents.search", "tune the blind best-ramp (or rigid) schedule; --sensitivity runs the threshold study"),
