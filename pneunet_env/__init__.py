@@ -24,28 +24,20 @@ __all__ = [
 ]
 
 ENV_ID = "PneuNetGrasp-v0"
-if ENV_ID not in _gym.registry:
-    _gym.register(
-        id=ENV_ID,
-        entry_point="pneunet_env.envs.grasp:PneuNetGraspEnv",
-        vector_entry_point="pneunet_env.envs.grasp_vector:PneuNetGraspVectorEnv",
-        max_episode_steps=EnvConfig().episode_steps,
-    )
 PAPER_ENV_ID = "PneuNetGrasp-Paper-v0"
+RIGID_ENV_ID = "RigidGrasp-v0"
 PAPER_TASK = {"use_case": None, "class_weights": None, "damage_rule": "crush_fraction"}
 """The paper's task: its 250 mm ring (the objects section's ranges) and the crush-fraction damage rule."""
-if PAPER_ENV_ID not in _gym.registry:
-    _gym.register(
-        id=PAPER_ENV_ID,
-        entry_point="pneunet_env.envs.grasp:PneuNetGraspEnv",
-        vector_entry_point="pneunet_env.envs.grasp_vector:PneuNetGraspVectorEnv",
-        max_episode_steps=EnvConfig().episode_steps,
-        kwargs=dict(PAPER_TASK),
-    )
-RIGID_ENV_ID = "RigidGrasp-v0"
-if RIGID_ENV_ID not in _gym.registry:
-    _gym.register(
-        id=RIGID_ENV_ID,
-        entry_point="pneunet_env.envs.rigid:RigidGraspEnv",
-        max_episode_steps=EnvConfig().episode_steps,
-    )
+
+_GRASP = "pneunet_env.envs.grasp:PneuNetGraspEnv"
+_GRASP_VECTOR = "pneunet_env.envs.grasp_vector:PneuNetGraspVectorEnv"
+# env id -> (entry point, vector entry point, kwargs): every env the package registers, in one table
+_ENVS = {
+    ENV_ID: (_GRASP, _GRASP_VECTOR, {}),
+    PAPER_ENV_ID: (_GRASP, _GRASP_VECTOR, PAPER_TASK),
+    RIGID_ENV_ID: ("pneunet_env.envs.rigid:RigidGraspEnv", None, {}),
+}
+for _id, (_entry, _vector, _kwargs) in _ENVS.items():
+    if _id not in _gym.registry:
+        _gym.register(id=_id, entry_point=_entry, vector_entry_point=_vector,
+                      max_episode_steps=EnvConfig().episode_steps, kwargs=dict(_kwargs))

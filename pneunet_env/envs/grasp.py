@@ -19,7 +19,7 @@ from pneunet_env.config import EnvConfig, load_config
 from pneunet_env.physics.params import check_object
 from pneunet_env.physics.solver import Equilibrium
 
-__all__ = ["PneuNetGraspEnv", "observation_space"]
+__all__ = ["PneuNetGraspEnv", "observation_space", "single_env_step"]
 
 
 class PneuNetGraspEnv(gym.Env):
@@ -182,20 +182,11 @@ class PneuNetGraspEnv(gym.Env):
         return obs, info
 
     def step(self, action):
-        if self._state is None:
-            raise ResetNeeded("call reset() before step()")
-        if self._ended:
-            raise ResetNeeded("the episode has ended (terminated or truncated): call reset() before step()")
-        res = task.step(self._state, task.single_action(action), self._params, task.newton_contact)
-        self._state = res.state
-        info = task.build_info(res.state, self._params.task, res, self.info_level, self._static_info)
-        terminated, truncated = bool(res.terminated), bool(res.truncated)
-        if terminated or truncated:
-            info["is_success"] = bool(res.outcome.success)
-            self._ended = True
+        out = single_env_step(self, action, task.newton_contact, lambda res: task.build_info(
+            res.state, self._params.task, res, self.info_level, self._static_info))
         if self.render_mode == "human":
             self.render()
-        return res.obs, float(res.reward), terminated, truncated, info
+        return out
 
     def render(self):
         if self.render_mode is None:
@@ -228,6 +219,26 @@ class PneuNetGraspEnv(gym.Env):
             self._viewer.close()
             self._viewer = None
         super().close()
+
+
+def single_env_step(env, action, contact: task.Contact, make_info):
+    """One Gymnasium ``step`` of a single env (this one, or the rigid jaw's) around :func:`pneunet_env.task.step`.
+
+    ``env`` holds ``_state``, ``_params`` and ``_ended``; ``make_info(res)`` builds its info. Stepping before ``reset``
+    or past an episode's end raises ``ResetNeeded``; ``is_success`` is added on the episode's last step.
+    """
+    if env._state is None:
+        raise ResetNeeded("call reset() before step()")
+    if env._ended:
+        raise ResetNeeded("the episode has ended (terminated or truncated): call reset() before step()")
+    res = task.step(env._state, task.single_action(action), env._params, contact)
+    env._state = res.state
+    info = make_info(res)
+    terminated, truncated = bool(res.terminated), bool(res.truncated)
+    if terminated or truncated:
+        info["is_success"] = bool(res.outcome.success)
+        env._ended = True
+    return res.obs, float(res.reward), terminated, truncated, info
 
 
 def observation_space(config: EnvConfig) -> spaces.Box:

@@ -62,11 +62,11 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
-from gymnasium.error import ResetNeeded
 
 from pneunet_env import task
 from pneunet_env.catalogue import class_table
 from pneunet_env.config import EnvConfig, load_config
+from pneunet_env.envs.grasp import single_env_step
 from pneunet_env.physics.params import check_positive
 from pneunet_env.physics.solver import STATUS_CONVERGED, Equilibrium
 
@@ -190,15 +190,4 @@ class RigidGraspEnv(gym.Env):
         return obs, self._info(None)
 
     def step(self, action):
-        if self._state is None:
-            raise ResetNeeded("call reset() before step()")
-        if self._ended:
-            raise ResetNeeded("the episode has ended (terminated or truncated): call reset() before step()")
-        res = task.step(self._state, task.single_action(action), self._params, self._contact)
-        self._state = res.state
-        info = self._info(res)
-        terminated, truncated = bool(res.terminated), bool(res.truncated)
-        if terminated or truncated:
-            info["is_success"] = bool(res.outcome.success)
-            self._ended = True
-        return res.obs, float(res.reward), terminated, truncated, info
+        return single_env_step(self, action, self._contact, self._info)
