@@ -66,6 +66,7 @@ from pneunet_env.physics.solver import (
     status_message,
     step_state,
 )
+from pneunet_env.physics.xp import is_torch, ops_for
 
 __all__ = [
     "TaskParams",
@@ -91,6 +92,7 @@ __all__ = [
     "observation",
     "newton_contact",
     "newton_contact_batch",
+    "torch_contact_batch",
     "free_volume_change",
     "reset_state",
     "class_names",
@@ -408,7 +410,14 @@ def object_thresholds(obj: GraspObject, params: TaskParams) -> Thresholds:
 
 
 def check_action(action):
-    """``action`` as a float array (a Python float if 0-d); ``ValueError`` naming it unless all finite."""
+    """``action`` as a float array (a Python float if 0-d; a tensor stays a tensor); ``ValueError`` naming it unless
+    all finite."""
+    if is_torch(action):
+        bad = ~action.isfinite()
+        if bool(bad.any()):
+            i = int(bad.reshape(-1).nonzero()[0, 0])
+            raise ValueError(f"actions[{i}] must be finite (no NaN or inf), got {float(action.reshape(-1)[i])!r}")
+        return action
     if isinstance(action, float):
         if not math.isfinite(action):
             raise ValueError(f"action must be finite (no NaN or inf), got {action!r}")
@@ -468,9 +477,15 @@ def single_action(action) -> float:
     return float(arr.reshape(-1)[0])
 
 
-def batch_actions(actions, n: int) -> np.ndarray:
+def batch_actions(actions, n: int, device=None):
     """A batch's actions, shape ``(n, 1)`` or ``(n,)``, as a float64 ``(n,)`` array; errors name what they got
-    (``TypeError`` for what is not real numbers, ``ValueError`` for the shape or a NaN/inf, with its index)."""
+    (``TypeError`` for what is not real numbers, ``ValueError`` for the shape or a NaN/inf, with its index).
+
+    With ``device`` (a torch device) the result is a float64 tensor there; a tensor is taken as it is (moved if it
+    is elsewhere), anything else as for numpy.
+    """
+    if device is not None or is_torch(actions):
+        return _tensor_actions(actions, n, device)
     a = _real_array(actions, "actions", f"of shape ({n}, 1)")
     if a.shape == (n, 1):
         a = a[:, 0]
@@ -481,6 +496,24 @@ def batch_actions(actions, n: int) -> np.ndarray:
         i = int(np.flatnonzero(bad)[0])
         raise ValueError(f"actions[{i}] must be finite (no NaN or inf), got {a[i]!r}")
     return a
+
+
+def _tensor_actions(actions, n: int, device):
+    import torch
+
+    if is_torch(actions):
+        if actions.dtype.is_complex or actions.dtype == torch.bool or not (
+                actions.dtype.is_floating_point or actions.dtype in (torch.int8, torch.int16, torch.int32, torch.int64,
+                                                                     torch.uint8)):
+            raise TypeError(f"actions must be real numbers of shape ({n}, 1), got a tensor of dtype {actions.dtype}")
+        a = actions.to(dtype=torch.float64, device=actions.device if device is None else device)
+    else:
+        a = torch.from_numpy(np.array(_real_array(actions, "actions", f"of shape ({n}, 1)"))).to(device)
+    if tuple(a.shape) == (n, 1):
+        a = a[:, 0]
+    elif tuple(a.shape) != (n,):
+        raise ValueError(f"actions must have shape ({n}, 1) (or ({n},)), got shape {tuple(a.shape)}")
+    return check_action(a)
 
 
 def update_pressure(pressure, action, params: TaskParams):
@@ -501,9 +534,10 @@ def update_pressure(pressure, action, params: TaskParams):
         clipped = a < -1.0 or a > 1.0
         a = min(max(a, -1.0), 1.0)
         return min(max(pressure + a * params.pressure_step, 0.0), params.pressure_max), clipped
+    xp = ops_for(a)
     clipped = (a < -1.0) | (a > 1.0)
-    a = np.minimum(np.maximum(a, -1.0), 1.0)
-    p = np.minimum(np.maximum(pressure + a * params.pressure_step, 0.0), params.pressure_max)
+    a = xp.minimum(xp.maximum(a, -1.0), 1.0)
+    p = xp.minimum(xp.maximum(pressure + a * params.pressure_step, 0.0), params.pressure_max)
     return p, clipped
 
 
@@ -524,10 +558,15 @@ class TaskState(NamedTuple):
     peak_force: float | np.ndarray  # largest F~ so far
 
 
-def initial_state(shape: tuple[int, ...] | None = None) -> TaskState:
-    """The task state at ``reset``: scalars (``shape=None``) or arrays of ``shape``."""
+def initial_state(shape: tuple[int, ...] | None = None, like=None) -> TaskState:
+    """The task state at ``reset``: scalars (``shape=None``) or arrays of ``shape`` (tensors on ``like``'s device
+    when ``like`` is a tensor)."""
     if shape is None:
         return TaskState(0, False, False, 0.0)
+    if is_torch(like):
+        xp, n = ops_for(like), like.shape[0]
+        return TaskState(xp.full(n, 0, "int"), xp.full(n, False, "bool"), xp.full(n, False, "bool"),
+                         xp.full(n, 0.0, "float"))
     return TaskState(np.zeros(shape, int), np.zeros(shape, bool), np.zeros(shape, bool), np.zeros(shape))
 
 
@@ -587,12 +626,14 @@ def transition(
     truncated = (terminated ^ True) & (end | solver_failed)
     success = end & intact
     reward = (
-        params.reward_hold * held
-        + params.reward_success * success
-        - params.penalty_damage * damage_event
-        - params.penalty_slip * drop_event
+        params.reward_hold * _number(held)
+        + params.reward_success * _number(success)
+        - params.penalty_damage * _number(damage_event)
+        - params.penalty_slip * _number(drop_event)
     )
-    if isinstance(contact_force, np.ndarray) or isinstance(state.peak_force, np.ndarray):
+    if is_torch(contact_force):
+        peak = ops_for(contact_force).maximum(state.peak_force, contact_force)
+    elif isinstance(contact_force, np.ndarray) or isinstance(state.peak_force, np.ndarray):
         peak = np.maximum(state.peak_force, contact_force)
     else:  # one environment: the same number (an np.float64, as np.maximum gives) without a ufunc call
         peak = _float64(contact_force if contact_force > state.peak_force else state.peak_force)
@@ -601,6 +642,12 @@ def transition(
         in_hold, overstressed, crushed, damage_event, slipping, drop_event, held, terminated, truncated, success,
         reward,
     )
+
+
+def _number(flag):
+    """A flag as a number for the reward: a float64 tensor for a bool tensor (torch would make float32 of
+    ``float * bool``); numpy arrays and Python bools are used as they are."""
+    return flag.double() if is_torch(flag) else flag
 
 
 # ---------------------------------------------------------------------------------------------
@@ -614,6 +661,10 @@ def observation(pressure, volume_change, params: TaskParams, volume_scale: float
     ``[p / p_max]``, and with ``volume_scale`` given ``[p / p_max, dV / volume_scale]`` (the chamber's
     volume change, which a flow sensor could measure; ``volume_scale`` is the free actuator's at ``p_max``).
     """
+    if is_torch(pressure):
+        xp = ops_for(pressure)
+        p = pressure / params.pressure_max
+        return xp.to_float32(p[..., None] if volume_scale is None else xp.stack([p, volume_change / volume_scale]))
     if not isinstance(pressure, np.ndarray):  # one environment
         if volume_scale is None:
             return np.array([pressure / params.pressure_max], dtype=np.float32)
@@ -627,6 +678,9 @@ def observation(pressure, volume_change, params: TaskParams, volume_scale: float
 
 def _ratio(a, b):
     """``a / b``, and 0 where ``b`` is 0 (an object of zero modulus carries no traction)."""
+    if is_torch(a) or is_torch(b):
+        xp = ops_for(a if is_torch(a) else b)
+        return xp.where(b > 0.0, a / xp.where(b > 0.0, b, 1.0), 0.0)
     if not isinstance(a, np.ndarray) and not isinstance(b, np.ndarray):
         return a / b if b > 0.0 else 0.0
     a, b = np.broadcast_arrays(np.asarray(a, dtype=float), np.asarray(b, dtype=float))
@@ -680,6 +734,17 @@ def newton_contact_batch(kappa, side_strain, p0, p1, obj: GraspObject, params: E
     """The pneu-net's quasi-static step for ``(N,)`` envs (:func:`pneunet_env.physics.batched.solve_batch`)."""
     return solve_batch(kappa, side_strain, p0, p1, obj.stiffness, obj.curvature, params.actuator_params,
                        params.solver_options, backend=backend, validate=False, parallel=parallel)
+
+
+def torch_contact_batch(kappa, side_strain, p0, p1, obj: GraspObject, params: EnvParams, compile: bool = False,
+                        max_rounds: int | None = None) -> Equilibrium:
+    """The pneu-net's quasi-static step for ``(N,)`` float64 tensors of one device: the masked solver on torch
+    (:func:`pneunet_env.physics.batched.solve_batch_torch`), an :class:`Equilibrium` of tensors there."""
+    from pneunet_env.physics.batched import solve_batch_torch
+
+    active = ops_for(kappa).full(kappa.shape[0], True, "bool")
+    return solve_batch_torch(kappa, side_strain, p0, p1, obj.stiffness, obj.curvature, params.actuator,
+                             params.solver, active, compile=compile, max_rounds=max_rounds)
 
 
 def free_volume_change(config: EnvConfig) -> float:
@@ -771,15 +836,19 @@ def warn_if_beyond_convergence(obj: GraspObject, warned: bool = False) -> bool:
 def reset_state(obj: GraspObject, params: EnvParams, contact: Contact) -> EnvState:
     """The state at ``reset``: command 0, the actuator at rest (the equilibrium at ``p~ = 0``), the object's
     thresholds, a fresh task state. Scalars for one object, ``(N,)`` arrays for a batch."""
-    shape = np.shape(obj.stiffness)
-    zero: Any = 0.0 if shape == () else np.zeros(shape)
+    k = obj.stiffness
+    shape = tuple(k.shape) if is_torch(k) else np.shape(k)
+    zero: Any = 0.0 if shape == () else (k * 0.0 if is_torch(k) else np.zeros(shape))
     eq = contact(zero, zero, zero, zero, obj, params)
-    return EnvState(0.0 if shape == () else np.zeros(shape), eq, obj, object_thresholds(obj, params.task),
-                    initial_state(None if shape == () else shape))
+    return EnvState(0.0 if shape == () else zero * 1.0, eq, obj, object_thresholds(obj, params.task),
+                    initial_state(None if shape == () else shape, k))
 
 
 def _keep_where(failed, old: Equilibrium, new: Equilibrium) -> Equilibrium:
     """``new``, with ``old``'s entries where the solve ``failed`` (the previous state is kept)."""
+    if is_torch(failed):  # no test of failed.any(): that would be a host sync on a GPU
+        where = ops_for(failed).where
+        return Equilibrium(*(where(failed, a, b) for a, b in zip(old, new, strict=True)))
     if not isinstance(failed, np.ndarray):
         return old if failed else new
     if not failed.any():
@@ -806,9 +875,11 @@ def step(state: EnvState, action, params: EnvParams, contact: Contact) -> Step:
     prev = state.eq
     solve = contact(prev.curvature, prev.side_strain, prev.pressure, command, state.obj, params)
     conv = solve.converged
-    failed = (conv ^ True) if isinstance(conv, np.ndarray) else not conv
+    failed = (not conv) if isinstance(conv, (bool, np.bool_)) else ~conv
     eq = _keep_where(failed, prev, solve)
-    if isinstance(failed, np.ndarray):
+    if is_torch(failed):
+        command = ops_for(failed).where(failed, state.command, command)
+    elif isinstance(failed, np.ndarray):
         command = np.where(failed, state.command, command) if failed.any() else command
     elif failed:
         command = state.command
@@ -834,7 +905,7 @@ def merge(old, idx, new):
         if isinstance(a, tuple) or dataclasses.is_dataclass(a):
             out.append(merge(a, idx, b))
         else:
-            c = np.array(a, copy=True)
+            c = a.clone() if is_torch(a) else np.array(a, copy=True)
             c[idx] = b
             out.append(c)
     return type(old)(*out)
@@ -913,9 +984,10 @@ def build_info(
     mu, w = params.shear_modulus_kpa, params.width_mm
     F = eq.contact_force
     in_contact = eq.in_contact
-    if isinstance(in_contact, np.ndarray):
-        delta = np.where(in_contact, eq.indentation, 0.0)
-        damage_ratio = np.maximum(
+    if not isinstance(in_contact, (bool, np.bool_)):
+        xp = ops_for(in_contact)
+        delta = xp.where(in_contact, eq.indentation, 0.0)
+        damage_ratio = xp.maximum(
             _ratio(F, thresholds.failure_traction), _ratio(delta, thresholds.crush_indentation)
         )
     else:
@@ -949,7 +1021,7 @@ def build_info(
         "solver_failed": solver_failed,
         "solver_iterations": solve.iterations,
         "solver_substeps": solve.substeps,
-        "solver_status": status_message(solve.status),
+        "solver_status": status_message(solve.status.cpu().numpy() if is_torch(solve.status) else solve.status),
         "gradient_norm": solve.gradient_norm,
         "min_eigenvalue": solve.min_eigenvalue,
         "action_clipped": action_clipped,
@@ -965,10 +1037,10 @@ def build_info(
 def _lean_info(eq, solve, obj, thresholds, task_state, params, outcome, action_clipped, solver_failed, static):
     mu, w = params.shear_modulus_kpa, params.width_mm
     in_contact = eq.in_contact
-    if isinstance(in_contact, np.ndarray):
-        delta = np.where(in_contact, eq.indentation, 0.0)
-    else:
+    if isinstance(in_contact, (bool, np.bool_)):
         delta = eq.indentation if in_contact else 0.0
+    else:
+        delta = ops_for(in_contact).where(in_contact, eq.indentation, 0.0)
     info: dict[str, Any] = {
         "pressure_kpa": eq.pressure * mu,
         "curvature_per_m": eq.curvature / (w * 1e-3),

@@ -88,6 +88,34 @@ def test_classes_in_the_model_are_within_the_actuators_reach(name):
     assert CATALOGUE[name].radius_mm[0] >= REACH_RADIUS_MM
 
 
+def test_bread_is_in_the_catalogue_with_sources_and_out_of_the_model():
+    # issue #12: bread crumb is a cellular solid (>70 % gas): listed with its literature values, never drawn
+    bread = CATALOGUE["bread"]
+    assert not bread.in_annulus_model
+    assert "gas" in bread.reason
+    tags = " ".join(s.split("]")[0] for s in bread.sources)
+    for field in ("E", "failure stress", "density"):
+        assert field in tags, field
+    assert any("doi:10.1006/jcrs.2000.0334" in s for s in bread.sources)  # Sapirstein, Fahloul, Scanlon (2000)
+    # more than half gas by rule 1 of docs/env.md, even if the cell walls were no denser than water
+    assert bread.density_kg_m3[1] < 0.5 * 998.0
+    # failure strain DERIVED with the linear rule sigma_f = E eps_f at the ends of the ranges
+    lo = bread.failure_stress_kpa[0] / bread.youngs_modulus_kpa[1]
+    hi = bread.failure_stress_kpa[1] / bread.youngs_modulus_kpa[0]
+    assert bread.failure_strain == pytest.approx((lo, hi), rel=0.03)
+    cases = load_use_cases()
+    for name in ("kitchen", "catalogue_uniform"):
+        assert "bread" in cases[name].unreachable and "bread" not in cases[name].weights, name
+
+
+def test_kitchen_weights_are_the_ones_fixed_before_any_result():
+    # the default use case's weights were fixed before any success rate was computed (docs/env.md): adding a class
+    # to the catalogue never changes them
+    assert use_case_weights("kitchen") == pytest.approx(
+        {"apple": 0.30, "kiwifruit": 0.25, "soft_cheese": 0.25, "gelatin_gel": 0.20})
+    assert set(load_use_cases()["catalogue_uniform"].weights) == {n for n, c in CATALOGUE.items() if c.in_annulus_model}
+
+
 # ---------------------------------------------------------------------------------------------
 # Use cases
 # ---------------------------------------------------------------------------------------------

@@ -59,6 +59,7 @@ __all__ = [
     "Method",
     "PathRun",
     "make_scenes",
+    "catalogue_corners",
     "make_methods",
     "solve_path",
     "solve_steps",
@@ -132,14 +133,60 @@ def _ramp(p_max: float, dp: float, unload: bool = False, first: float | None = N
     return tuple(up + up[-2::-1]) if unload else tuple(up)
 
 
+@dataclass(frozen=True)
+class CatalogueCorner:
+    """One corner of an object class's range box in the catalogue (``pneunet_env/data/objects.yaml``).
+
+    ``youngs_modulus_kpa``, ``radius_mm`` and ``thickness_mm`` are the class's values at the corner;
+    ``object_stiffness`` is eq. 3.2's ``k~ = k_obj w/mu`` there and ``object_curvature`` is ``w kappa_obj = w/R``,
+    at the paper's scales ``w = 5 mm``, ``mu = 50 kPa``.
+    """
+
+    name: str
+    youngs_modulus_kpa: float
+    radius_mm: float
+    thickness_mm: float
+    object_stiffness: float
+    object_curvature: float
+
+
+def catalogue_corners() -> dict[str, CatalogueCorner]:
+    """``{"stiff": ..., "soft": ...}``: the largest and the smallest ``k~`` over the catalogue's classes inside
+    eq. 3.2's annulus model (the corners :func:`pneunet_env.catalogue.stiffness_range` takes its extremes at:
+    top modulus, smallest radius, thickest layer; and the opposite)."""
+    from pneunet_env.catalogue import load_catalogue
+    from pneunet_env.physics.contact import winkler_stiffness
+    from pneunet_env.physics.units import Scales
+
+    w, mu = Scales().width_mm, Scales().shear_modulus_kpa
+    corners = []
+    for cls in load_catalogue().values():
+        if not cls.in_annulus_model:
+            continue
+        for i, j in ((1, 0), (0, 1)):  # (stiff: E_hi, R_lo, H_hi), (soft: E_lo, R_hi, H_lo)
+            e, r, h = cls.youngs_modulus_kpa[i], cls.radius_mm[j], cls.thickness_mm[i]
+            k = float(winkler_stiffness(e / 3.0, h, 1e3 / r, w, mu))
+            corners.append(CatalogueCorner(cls.name, e, r, h, k, w / r))
+    return {"stiff": max(corners, key=lambda c: c.object_stiffness),
+            "soft": min(corners, key=lambda c: c.object_stiffness)}
+
+
+def _corner_text(c: CatalogueCorner) -> str:
+    return (f"{c.name}, E = {c.youngs_modulus_kpa:g} kPa, R = {c.radius_mm:g} mm, H = {c.thickness_mm:g} mm: "
+            f"k~ = {c.object_stiffness:.3g}, w kappa_obj = {c.object_curvature:.3g}")
+
+
 def make_scenes(quick: bool = False) -> list[Scene]:
     """The study's scenes (paper defaults unless stated).
 
     ``quick`` doubles the pressure increment (but keeps a first point at ``p~ = 0.05``, where ``auto`` answers
-    with the linear model).
+    with the linear model). The last two are hand-scale objects of the catalogue (:func:`catalogue_corners`),
+    loaded to the environment's ``p~ = 1.2`` and unloaded, as an episode does.
     """
     dp = 0.1 if quick else 0.05
     first = 0.05
+    corners = catalogue_corners()
+    hard, soft = corners["stiff"], corners["soft"]
     return [
         Scene("free", "free actuator through the balloon instability (k~ = 0, p~ to 1.2)", _ramp(1.2, dp, first=first)),
         Scene("soft", "soft object k~ = 1e-5: follows the free actuator, traction saturates",
@@ -154,6 +201,13 @@ def make_scenes(quick: bool = False) -> list[Scene]:
               _ramp(6.0, 2 * dp, first=first)),
         Scene("large steps", "k~ = 1e-4 in increments of 0.2, loading to 1.2 and unloading",
               _ramp(1.2, 0.2, unload=True), 1e-4),
+        Scene("hand stiff", f"the catalogue's stiffest corner ({_corner_text(hard)}; contact ratio "
+              f"k~/(w kappa_obj)^4 = {hard.object_stiffness / hard.object_curvature ** 4:.2g}): contact just past "
+              "the balloon, then the curvature held near w kappa_obj; loading to 1.2 and unloading",
+              _ramp(1.2, dp, unload=True, first=first), hard.object_stiffness, hard.object_curvature),
+        Scene("hand soft", f"the catalogue's softest corner ({_corner_text(soft)}): contact inside the balloon, then "
+              "the actuator curls on almost as if free (force control); loading to 1.2 and unloading",
+              _ramp(1.2, dp, unload=True, first=first), soft.object_stiffness, soft.object_curvature),
     ]
 
 
@@ -454,8 +508,25 @@ def _evaluate(method: Method, run: PathRun, pressures, ref, k, ko, params) -> li
     return [classify(run.states[i], ref[i], float(p), k, ko, params, method.kind) for i, p in enumerate(pressures)]
 
 
+def _stationarity(states: np.ndarray, scene: Scene) -> tuple[float | None, float | None]:
+    """``(max |grad U~|_2, min lambda_min(H))`` of the full energy over the answers inside the domain (``None``
+    if there is none): an answer is a converged minimum when ``|grad| <= 1e-10`` and ``lambda_min > 0``."""
+    grads, eigs = [], []
+    for x, p in zip(states, scene.pressures, strict=True):
+        if not np.all(np.isfinite(x)):
+            continue
+        ok, _, g0, g1, a, b, c, *_ = mechanics.scalar_terms(float(x[0]), float(x[1]), float(p),
+                                                             *scene.params.as_tuple(), scene.object_stiffness,
+                                                             scene.object_curvature)
+        if ok:
+            grads.append(math.hypot(g0, g1))
+            eigs.append(0.5 * (a + c) - math.hypot(0.5 * (a - c), b))
+    return (max(grads), min(eigs)) if grads else (None, None)
+
+
 def _record(method: Method, scene: Scene, run: PathRun, outcomes: list[tuple[str, float]]) -> dict:
     errors = np.array([e for _, e in outcomes])
+    grad, eig = _stationarity(run.states, scene)
     kinds = [o for o, _ in outcomes]
     failed = [i for i, o in enumerate(kinds) if o in FAILURES]
     ok = [i for i in range(len(kinds)) if i not in failed]
@@ -475,6 +546,8 @@ def _record(method: Method, scene: Scene, run: PathRun, outcomes: list[tuple[str
         "first_failure_message": run.messages[failed[0]] if failed else None,
         "error_where_not_failed": float(np.max(errors[ok])) if ok else None,
         "evaluations_per_solve": float(run.evaluations.mean()),
+        "max_gradient_norm": grad,
+        "min_hessian_eigenvalue": eig,
     }
 
 

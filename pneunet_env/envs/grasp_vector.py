@@ -33,6 +33,7 @@ from pneunet_env.envs.grasp import observation_space
 from pneunet_env.objects import GraspObject
 from pneunet_env.physics.batched import BACKENDS
 from pneunet_env.physics.solver import Equilibrium
+from pneunet_env.physics.xp import NUMPY, is_torch, torch_ops
 
 __all__ = ["PneuNetGraspVectorEnv", "PCG64Streams"]
 
@@ -214,8 +215,15 @@ def _autoreset_mode(mode) -> AutoresetMode:
                      f"got {mode!r}")
 
 
-def _zero_like(a: np.ndarray):
+def _zero_like(a):
+    """The zero of ``a``'s dtype (``False`` for flags) that fills the entries a mask leaves out."""
+    if is_torch(a):
+        return False if a.dtype.__str__() == "torch.bool" else (0.0 if a.dtype.is_floating_point else 0)
     return None if a.dtype == object else a.dtype.type(0)
+
+
+def _copy(a):
+    return a.clone() if is_torch(a) else a.copy()
 
 
 class PneuNetGraspVectorEnv(VectorEnv):
@@ -285,7 +293,15 @@ class PneuNetGraspVectorEnv(VectorEnv):
     * ``max_episode_steps``: a time limit (what ``gym.make``'s ``TimeLimit`` does: ``truncated`` once a
       sub-env has taken that many steps); ``make_vec`` passes the registered 100. ``None``: only the
       task's own end (``squeeze_steps + hold_steps``).
-    * ``backend``: the batched solver's, ``"auto"`` (numba if installed, else numpy), ``"numba"`` or ``"numpy"``.
+    * ``backend``: the batched solver's, ``"auto"`` (numba if installed, else numpy), ``"numba"``, ``"numpy"`` or
+      ``"torch"``. With ``"torch"`` the whole state lives on ``device`` as float64 tensors and the step is the same
+      pure :func:`pneunet_env.task.step` on tensors with the masked solver (:mod:`pneunet_env.physics.masked`):
+      observations (float32), rewards (float64), flags and info values are **torch tensors on the device**
+      (``obs.cpu().numpy()`` gives numpy; actions may be tensors or arrays). Objects are still drawn from the
+      per-env PCG64 streams on the host (the same draws as every other backend) and sent to the device at reset.
+      ``final_obs`` is then an ``(N, obs_dim)`` tensor masked by ``_final_obs`` (not an object array).
+    * ``device``: torch only: ``"cpu"`` (default), ``"cuda"``, ``"cuda:1"``, ...
+    * ``compile``: torch only: run the solver's round through ``torch.compile`` (pays on a GPU; see the benchmark).
     * ``parallel``: numba only: split the solve over the cores (numba's threads, ``NUMBA_NUM_THREADS``); ``None``
       from :data:`pneunet_env.physics.batched.PARALLEL_MIN_ENVS` envs on. Pass ``False`` when other processes keep the
       cores busy: numba's threads then wait on each other (a step can take 10x longer).
@@ -318,6 +334,8 @@ class PneuNetGraspVectorEnv(VectorEnv):
         parallel: bool | None = None,
         info_level: str = "lean",
         autoreset_mode: AutoresetMode | str = AutoresetMode.SAME_STEP,
+        device: Any = None,
+        compile: bool = False,
         **overrides: Any,
     ) -> None:
         try:
@@ -330,6 +348,25 @@ class PneuNetGraspVectorEnv(VectorEnv):
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
         if backend not in BACKENDS:
             raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
+        if backend != "torch" and (device is not None or compile):
+            raise ValueError(f"device and compile are for backend='torch' only, got device={device!r}, "
+                             f"compile={compile!r} with backend={backend!r}")
+        if not isinstance(compile, bool):
+            raise ValueError(f"compile must be True or False, got {compile!r}")
+        if backend == "torch":
+            try:
+                import torch
+            except ImportError:
+                raise ValueError("backend='torch' needs torch (pip install torch)") from None
+            try:
+                self._xp = torch_ops("cpu" if device is None else device)
+                torch.zeros(1, device=self._xp.device)
+            except (RuntimeError, TypeError, AssertionError) as exc:
+                raise ValueError(f"device must name an available torch device, got {device!r} ({exc})") from None
+            self.device = self._xp.device
+        else:
+            self._xp = NUMPY
+            self.device = None
         if info_level not in task.INFO_LEVELS:
             raise ValueError(f"info_level must be one of {task.INFO_LEVELS}, got {info_level!r}")
         if max_episode_steps is not None:
@@ -352,7 +389,10 @@ class PneuNetGraspVectorEnv(VectorEnv):
         self._params = task.EnvParams.from_config(self.config)
         self.object_class_names: tuple[str, ...] = task.class_names(self.config)
         """The catalogue classes, by the integer code of ``info["object_class"]`` (-1: drawn from ranges)."""
-        self._contact = functools.partial(task.newton_contact_batch, backend=backend, parallel=parallel)
+        if backend == "torch":
+            self._contact = functools.partial(task.torch_contact_batch, compile=compile)
+        else:
+            self._contact = functools.partial(task.newton_contact_batch, backend=backend, parallel=parallel)
         self.single_action_space = spaces.Box(-1.0, 1.0, (1,), np.float32)
         self.single_observation_space = observation_space(self.config)
         self.action_space = batch_space(self.single_action_space, n)
@@ -361,7 +401,7 @@ class PneuNetGraspVectorEnv(VectorEnv):
         self._seeded = False
         self._state: task.EnvState | None = None
         self._obs: np.ndarray | None = None
-        self._pending = np.zeros(n, bool)  # NEXT_STEP: sub-envs to reset on the next step
+        self._pending = self._xp.full(n, False, "bool")  # NEXT_STEP: sub-envs to reset on the next step
         self._warned = False
 
     # ---- state, for users ------------------------------------------------------------------------------
@@ -376,13 +416,13 @@ class PneuNetGraspVectorEnv(VectorEnv):
         if self._state is None:
             return None
         obj = self._state.obj
-        return GraspObject(*(np.copy(getattr(obj, f.name)) for f in dataclasses.fields(obj)))
+        return GraspObject(*(_copy(getattr(obj, f.name)) for f in dataclasses.fields(obj)))
 
     @property
     def equilibria(self) -> Equilibrium | None:
         """The current quasi-static states: an :class:`~pneunet_env.physics.solver.Equilibrium` of ``(N,)`` arrays
         (copies)."""
-        return None if self._state is None else Equilibrium(*(np.copy(v) for v in self._state.eq))
+        return None if self._state is None else Equilibrium(*(_copy(v) for v in self._state.eq))
 
     def equilibrium(self, i: int) -> Equilibrium:
         """Sub-env ``i``'s state as the single env's :class:`~pneunet_env.physics.solver.Equilibrium` (scalars)."""
@@ -400,7 +440,8 @@ class PneuNetGraspVectorEnv(VectorEnv):
         s = self._state
         obj = [getattr(s.obj, f.name) for f in dataclasses.fields(s.obj)]
         arrays = [s.command, *s.eq, *obj, *s.thresholds, *s.task, self._obs]
-        return int(sum(np.asarray(a).nbytes for a in arrays)) + self._streams.nbytes
+        size = sum(a.element_size() * a.nelement() if is_torch(a) else np.asarray(a).nbytes for a in arrays)
+        return int(size) + self._streams.nbytes
 
     # ---- Gymnasium API -----------------------------------------------------------------------------------
     def reset(self, *, seed: int | Sequence[int | None] | None = None, options: dict[str, Any] | None = None):
@@ -411,7 +452,7 @@ class PneuNetGraspVectorEnv(VectorEnv):
         pins = dict(options or {})
         mask = pins.pop("reset_mask", None)
         if mask is not None:
-            mask = np.asarray(mask)
+            mask = mask.cpu().numpy() if is_torch(mask) else np.asarray(mask)
             if mask.dtype != bool or mask.shape != (n,):
                 raise ValueError(f"options['reset_mask'] must be a bool array of shape ({n},), got "
                                  f"{mask.dtype} {mask.shape}")
@@ -424,25 +465,46 @@ class PneuNetGraspVectorEnv(VectorEnv):
         pins = {k: (np.asarray(v)[idx] if np.ndim(v) == 1 and np.shape(v) == (n,) else v) for k, v in pins.items()}
         obj = self._draw(idx, pins)
         if mask is None:
-            self._pending = np.zeros(n, bool)
+            self._pending = self._xp.full(n, False, "bool")
             self._state = task.reset_state(obj, self._params, self._contact)
             obs, info = self._observe(self._state), self._info(self._state, None, None)
         else:
+            mask, idx = self._to_device(mask), self._to_device(idx)
             self._pending = self._pending & ~mask
             self._state = task.autoreset(self._state, idx, obj, self._params, self._contact)
-            obs = self._obs.copy()
+            obs = _copy(self._obs)
             obs[idx] = self._observe(self._state)[idx]
             info = self._info(self._state, None, mask)
-            info = {k: np.where(mask, v, _zero_like(v)) if k[0] != "_" else v for k, v in info.items()}
-        self._obs = obs.copy()
+            info = {k: self._masked(mask, v) if k[0] != "_" else v for k, v in info.items()}
+        self._obs = _copy(obs)
         return obs, info
+
+    def _to_device(self, a):
+        """A host array (or a :class:`GraspObject` of them) on the backend's device: itself for numpy back-ends."""
+        if self._xp is NUMPY:
+            return a
+        import torch
+
+        if isinstance(a, GraspObject):
+            return GraspObject(*(self._to_device(np.asarray(getattr(a, f.name))) for f in dataclasses.fields(a)))
+        return torch.from_numpy(np.ascontiguousarray(a)).to(self.device)
+
+    def _masked(self, mask, v):
+        """``v`` where ``mask``, else its dtype's zero (a numpy array, e.g. of strings, stays on the host)."""
+        if is_torch(v):
+            return self._xp.where(mask, v, _zero_like(v))
+        return np.where(self._host(mask), v, _zero_like(v))
+
+    def _host(self, a) -> np.ndarray:
+        return a.cpu().numpy() if is_torch(a) else a
 
     def _draw(self, idx: np.ndarray, pins: dict[str, Any]) -> GraspObject:
         """Objects for sub-envs ``idx``, from each one's own stream (the vector env's only source of randomness)."""
         u = self._streams.random(idx, task.draw_count(self.config))
+        pins = {k: (self._host(v) if is_torch(v) else v) for k, v in pins.items()}
         obj = task.object_from_uniforms(u, self.config, pinned=pins, batch=True)
         self._warned = task.warn_if_beyond_convergence(obj, self._warned)
-        return obj
+        return self._to_device(obj)
 
     def _observe(self, state: task.EnvState) -> np.ndarray:
         return task.observation(state.command, state.eq.volume_change, self._params.task, self._params.volume_scale)
@@ -481,28 +543,35 @@ class PneuNetGraspVectorEnv(VectorEnv):
         own.update(id(getattr(state.obj, f.name)) for f in dataclasses.fields(state.obj))
         if res is not None:
             own.update(id(v) for v in res.solve)
-        base = np.ones(n, bool) if mask is None else mask
+        xp = self._xp
+        base = xp.full(n, True, "bool") if mask is None else mask
         out: dict[str, Any] = {}
         for k, v in info.items():
-            if np.ndim(v) == 0:
+            if is_torch(v):
+                v = v.expand(n).clone() if v.ndim == 0 else (v.clone() if id(v) in own else v)
+            elif np.ndim(v) == 0:
                 v = np.full(n, v)
+                if xp is not NUMPY:
+                    v = self._to_device(v)
             elif id(v) in own:
                 v = v.copy()
             out[k] = v
-            out["_" + k] = base.copy()  # one array per key, as Gymnasium's vector envs give
+            out["_" + k] = _copy(base)  # one array per key, as Gymnasium's vector envs give
         return out
 
     def step(self, actions):
         if self._state is None:
             raise ResetNeeded("call reset() before step()")
-        a = task.batch_actions(actions, self.num_envs)
+        a = task.batch_actions(actions, self.num_envs, self.device)
         res = task.step(self._state, a, self._params, self._contact)
-        terminated = np.asarray(res.terminated, dtype=bool)
-        truncated = np.asarray(res.truncated, dtype=bool)
+        terminated, truncated, reward = res.terminated, res.truncated, res.reward
+        if self._xp is NUMPY:
+            terminated = np.asarray(terminated, dtype=bool)
+            truncated = np.asarray(truncated, dtype=bool)
+            reward = np.asarray(reward, dtype=np.float64)
         state = res.state
         if self.max_episode_steps is not None:
             truncated = truncated | (state.task.step >= self.max_episode_steps)
-        reward = np.asarray(res.reward, dtype=np.float64)
         obs = res.obs
         if self.autoreset_mode is AutoresetMode.NEXT_STEP:
             return self._step_next(res, obs, reward, terminated, truncated)
@@ -510,23 +579,28 @@ class PneuNetGraspVectorEnv(VectorEnv):
         self._state = state
         done = terminated | truncated
         if not done.any():
-            self._obs = obs.copy()
+            self._obs = _copy(obs)
             return obs, reward, terminated, truncated, info
 
         # SAME_STEP autoreset: the ended step's observation and info go to final_obs / final_info.
-        idx = np.flatnonzero(done)
-        final_info = {k: np.where(done, v, _zero_like(v)) for k, v in info.items() if k[0] != "_"}
-        final_info["is_success"] = done & np.asarray(res.outcome.success, dtype=bool)
-        final_info = {k2: v2 for k, v in final_info.items() for k2, v2 in ((k, v), ("_" + k, done.copy()))}
-        final_obs = np.full(self.num_envs, None, dtype=object)
-        final_obs[idx] = np.fromiter(obs[idx], dtype=object, count=idx.size)
-        self._state = task.autoreset(state, idx, self._draw(idx, {}), self._params, self._contact)
-        obs = obs.copy()
+        xp = self._xp
+        host_idx = np.flatnonzero(self._host(done))
+        idx = self._to_device(host_idx)
+        final_info = {k: self._masked(done, v) for k, v in info.items() if k[0] != "_"}
+        final_info["is_success"] = done & res.outcome.success
+        final_info = {k2: v2 for k, v in final_info.items() for k2, v2 in ((k, v), ("_" + k, _copy(done)))}
+        if xp is NUMPY:
+            final_obs = np.full(self.num_envs, None, dtype=object)
+            final_obs[idx] = np.fromiter(obs[idx], dtype=object, count=idx.size)
+        else:  # a tensor (N, obs_dim), masked by _final_obs
+            final_obs = xp.where(done[:, None], obs, 0.0)
+        self._state = task.autoreset(state, idx, self._draw(host_idx, {}), self._params, self._contact)
+        obs = _copy(obs)
         obs[idx] = self._observe(self._state)[idx]
         self._merge_reset_info(info, done)
-        info["final_obs"], info["_final_obs"] = final_obs, done.copy()
-        info["final_info"], info["_final_info"] = final_info, done.copy()
-        self._obs = obs.copy()
+        info["final_obs"], info["_final_obs"] = final_obs, _copy(done)
+        info["final_info"], info["_final_info"] = final_info, _copy(done)
+        self._obs = _copy(obs)
         return obs, reward, terminated, truncated, info
 
     def _step_next(self, res: task.Step, obs, reward, terminated, truncated):
@@ -537,33 +611,36 @@ class PneuNetGraspVectorEnv(VectorEnv):
         done = (terminated | truncated) & ~pending
         info = self._info(state, res, None)
         if done.any():
-            info["is_success"] = done & np.asarray(res.outcome.success, dtype=bool)
-            info["_is_success"] = done.copy()
+            info["is_success"] = done & res.outcome.success
+            info["_is_success"] = _copy(done)
         if pending.any():
-            idx = np.flatnonzero(pending)
-            state = task.autoreset(state, idx, self._draw(idx, {}), self._params, self._contact)
-            obs = obs.copy()
+            host_idx = np.flatnonzero(self._host(pending))
+            idx = self._to_device(host_idx)
+            state = task.autoreset(state, idx, self._draw(host_idx, {}), self._params, self._contact)
+            obs = _copy(obs)
             obs[idx] = self._observe(state)[idx]
-            reward = np.where(pending, 0.0, reward)
+            reward = self._xp.where(pending, 0.0, reward)
             terminated, truncated = terminated & ~pending, truncated & ~pending
             self._state = state
             self._merge_reset_info(info, pending)
         self._state = state
         self._pending = done
-        self._obs = obs.copy()
+        self._obs = _copy(obs)
         return obs, reward, terminated, truncated, info
 
     def _merge_reset_info(self, info: dict[str, Any], reset: np.ndarray) -> None:
         """Put the reset info of the sub-envs ``reset`` (already reset in ``self._state``) into ``info``."""
-        idx = np.flatnonzero(reset)
+        host_idx = np.flatnonzero(self._host(reset))
+        idx = self._to_device(host_idx)
         for k, v in self._info(self._state, None, reset).items():
             if k[0] == "_":
                 continue
             if k in info:
-                info[k][idx] = v[idx]
+                i = idx if is_torch(v) else host_idx
+                info[k][i] = v[i]
             else:  # a key only a reset info has (the object's constants, at the lean level)
-                info[k] = np.where(reset, v, _zero_like(v))
-                info["_" + k] = reset.copy()
+                info[k] = self._masked(reset, v)
+                info["_" + k] = _copy(reset)
 
     # ---- rendering ----------------------------------------------------------------------------------------
     def render_state(self, i: int):

@@ -32,42 +32,26 @@ from typing import NamedTuple
 
 import numpy as np
 
-from pneunet_env.physics import _jit, contact, mechanics
+from pneunet_env.physics import _jit, contact, masked, mechanics
 from pneunet_env.physics import solver as _solver
 from pneunet_env.physics._jit import HAVE_NUMBA
 from pneunet_env.physics.params import ActuatorParams
 from pneunet_env.physics.solver import (
-    ACCEPT_GTOL,
-    ARMIJO,
     DEFAULT_OPTIONS,
-    EASY_CORRECTOR_ITERATIONS,
-    ENERGY_ROUNDOFF,
-    ESCAPE_GRADIENT,
-    ESCAPE_STEP,
-    GROW,
-    LAST_STEP_SLACK,
-    MIN_STEP_LENGTH,
-    PREDICTED_JUMP_FRACTION,
-    SHRINK,
-    STATUS_BUDGET,
     STATUS_CONVERGED,
     STATUS_INACTIVE,
-    STATUS_LINE_SEARCH,
-    STATUS_MAX_ITER,
     STATUS_OUTSIDE,
     STATUS_ROUNDOFF,
-    STATUS_STALLED,
-    STEP_AFTER_FOLD,
     Equilibrium,
     SolverOptions,
-    make_sym2,
     params_tuple,
     step_state,
 )
+from pneunet_env.physics.xp import NUMPY, Ops, is_torch, torch_ops
 
 __all__ = ["BACKENDS", "PARALLEL_MIN_ENVS", "solve_batch", "solve_batch_numba", "solve_batch_numpy"]
 
-BACKENDS = ("auto", "numba", "numpy")
+BACKENDS = ("auto", "numba", "numpy", "torch")
 
 
 class _Raw(NamedTuple):
@@ -170,6 +154,7 @@ def solve_batch(
     backend: str = "auto",
     validate: bool = True,
     parallel: bool | None = None,
+    device=None,
 ) -> Equilibrium:
     """Follow N equilibria from pressures ``p0`` to ``p1`` (quasi-static loading), all at once.
 
@@ -186,12 +171,16 @@ def solve_batch(
         active: optional boolean mask ``(N,)``; inactive envs are not solved: they keep their input state, with
             NaN energy, gradient norm, eigenvalue and volume change, zero counts, ``converged`` false and
             ``status`` -1 (``STATUS_INACTIVE``).
-        backend: ``"auto"`` (numba if available, else numpy), ``"numba"`` or ``"numpy"``.
+        backend: ``"auto"`` (numba if available, else numpy), ``"numba"``, ``"numpy"`` or ``"torch"`` (the masked
+            solver on torch tensors; needs torch). With ``"torch"`` the result's arrays are float64 tensors on
+            ``device``; the inputs may be numpy arrays, numbers or tensors.
         validate: check the inputs (finite, signs, ranges) and raise ``ValueError`` naming the first
             bad value. A start state outside the domain always raises.
         parallel: numba back-end only: split the envs over the cores (numba's threads). ``None``: from
             :data:`PARALLEL_MIN_ENVS` envs on. ``False`` where the cores are busy with other work (numba's
             OpenMP threads wait actively and lose badly when oversubscribed).
+        device: torch back-end only: the device (``"cpu"``, ``"cuda"``, ...); ``None``: that of the first tensor
+            input, else the CPU.
 
     Returns:
         An :class:`~pneunet_env.physics.solver.Equilibrium` of ``(N,)`` arrays (fresh each call); entry ``i``
@@ -201,6 +190,11 @@ def solve_batch(
         raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
     if backend == "numba" and not HAVE_NUMBA:
         raise ValueError("backend='numba' needs numba (pip install pneunet-env[fast]; PNEUNET_DISABLE_NUMBA unset)")
+    if backend == "torch":
+        return _solve_batch_torch_api(kappa, side_strain, p0, p1, object_stiffness, object_curvature, params, options,
+                                      active, validate, device)
+    if device is not None:
+        raise ValueError(f"device is for backend='torch' only, got device={device!r} with backend={backend!r}")
     (k, s, a0, a1, kobj, ko), act = _prepare(kappa, side_strain, p0, p1, object_stiffness, object_curvature,
                                              active, validate)
     prm = params_tuple(params)
@@ -213,18 +207,49 @@ def solve_batch(
     return result
 
 
-def _result(raw: _Raw, p1, kobj, ko, chamber_height: float) -> Equilibrium:
+def _solve_batch_torch_api(kappa, side_strain, p0, p1, object_stiffness, object_curvature, params, options, active,
+                           validate, device) -> Equilibrium:
+    try:
+        import torch
+    except ImportError:
+        raise ValueError("backend='torch' needs torch (pip install torch)") from None
+    inputs = (kappa, side_strain, p0, p1, object_stiffness, object_curvature)
+    if device is None:
+        device = next((v.device for v in inputs if is_torch(v)), "cpu")
+    try:
+        dev = torch.device(device)
+    except (RuntimeError, TypeError) as exc:
+        raise ValueError(f"device must name a torch device, got {device!r} ({exc})") from None
+    host = [v.detach().cpu().numpy() if is_torch(v) else v for v in inputs]
+    act = active.detach().cpu().numpy() if is_torch(active) else active
+    cols, act = _prepare(*host, act, validate)
+    k, s, a0, a1, kobj, ko = (torch.tensor(np.array(c), dtype=torch.float64, device=dev) for c in cols)
+    result = solve_batch_torch(k, s, a0, a1, kobj, ko, params_tuple(params), options.as_tuple(),
+                               torch.as_tensor(act, device=dev))
+    bad = (result.status == STATUS_OUTSIDE).cpu().numpy()
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise ValueError(f"start state {i} (kappa[{i}]={float(cols[0][i])!r}, side_strain[{i}]="
+                         f"{float(cols[1][i])!r}) is outside the domain")
+    return result
+
+
+def _result(raw: _Raw, p1, kobj, ko, chamber_height: float, ops: Ops = NUMPY) -> Equilibrium:
     """The :class:`Equilibrium` of a back-end's outputs: eq. 3.1 and ``e_m`` from the state, as the scalar
-    :func:`pneunet_env.physics.solver.equilibrium` computes them."""
+    :func:`pneunet_env.physics.solver.equilibrium` computes them (arrays of the namespace ``ops``)."""
     with np.errstate(divide="ignore", invalid="ignore"):
-        delta, force, touching = contact.contact(raw.kappa, kobj, ko)
+        delta, force, touching = masked.kernels(ops)[3](raw.kappa, kobj, ko)
     status = raw.status
     return Equilibrium(
-        p1.copy(), raw.kappa, raw.side_strain, chamber_height * (1.0 + raw.side_strain) * raw.kappa, force, delta,
+        _copy(p1), raw.kappa, raw.side_strain, chamber_height * (1.0 + raw.side_strain) * raw.kappa, force, delta,
         touching, raw.volume_change, raw.energy, raw.gradient_norm, raw.min_eigenvalue,
         (status >= STATUS_CONVERGED) & (status <= STATUS_ROUNDOFF), raw.iterations, raw.substeps, raw.snapped,
-        status, kobj.copy(), ko.copy(),
+        status, _copy(kobj), _copy(ko),
     )
+
+
+def _copy(a):
+    return a.clone() if is_torch(a) else a.copy()
 
 
 def _allocate(k, s) -> _Raw:
@@ -327,308 +352,45 @@ def solve_batch_numba(k, s, p0, p1, kobj, ko, prm, opts, active, parallel: bool 
 
 
 # --------------------------------------------------------------------------------------------------
-# Vectorised back-end: the scalar control flow of solver.descend / solver.follow_ev, one program
-# position per env.
-
-# Positions that need an energy evaluation at an env's pending point (xk, xs, xp) ...
-_E_START = 1  # the start of a descent
-_E_PRED = 2  # the tangent predictor of a corrector (falls back on the branch point if outside the domain)
-_E_TRIAL = 3  # a line-search trial
-# ... and positions that only branch.
-_D_CHECK = 4  # top of a Newton iteration
-_D_END = 5  # a descent has finished
-_F_LOOP = 6  # top of the continuation loop
-_DONE = 7
-
-# Which descent an env is in.
-_POLISH, _CORRECTOR, _FOLD = 0, 1, 2
-
-
-_sym2_eigvals, _sym2_eigvec = make_sym2(np.hypot, np.arctan2, np.cos, np.sin, np.where)
-
-
-class _Machine:
-    """Registers of the vectorised solver: one entry per env, all float64/int64/bool arrays of shape (N,)."""
-
-    # Iterate (current point of the running descent) and its evaluation.
-    _FLOAT = ("k", "s", "U", "g0", "g1", "gn", "lmin", "lmax", "hkk", "hks", "hss", "vk", "vs", "dv",
-              # Line search.
-              "d0", "d1", "slope", "t", "kn", "sn",
-              # Descent settings.
-              "k0", "s0", "radius",
-              # Accepted branch state (the continuation's current equilibrium) and its evaluation.
-              "bk", "bs", "bU", "bgn", "blmin", "bhkk", "bhks", "bhss", "bvk", "bvs", "bdv",
-              # Continuation.
-              "p", "pt", "h", "sign",
-              # Pending evaluation point.
-              "xk", "xs", "xp")
-    _INT = ("pos", "mode", "it", "maxit", "dstatus", "bstatus", "iters", "substeps", "attempts")
-    _BOOL = ("ok", "bok", "snapped")
-
-    def __init__(self, n: int):
-        for name in self._FLOAT:
-            setattr(self, name, np.zeros(n))
-        for name in self._INT:
-            setattr(self, name, np.zeros(n, dtype=np.int64))
-        for name in self._BOOL:
-            setattr(self, name, np.zeros(n, dtype=bool))
+# Array back-ends: the masked solver (physics.masked), written once for numpy and torch.
 
 
 def solve_batch_numpy(k, s, p0, p1, kobj, ko, prm, opts, active) -> Equilibrium:
-    """The vectorised (numpy-only) back-end on prepared float64 arrays (no validation; see :func:`solve_batch`).
+    """The vectorised (numpy-only) back-end on prepared float64 arrays (no validation; see :func:`solve_batch`):
+    :func:`pneunet_env.physics.masked.solve_masked` on numpy, dropping finished envs from the rounds.
 
     ``prm`` is :func:`pneunet_env.physics.solver.params_tuple`, ``opts`` :meth:`SolverOptions.as_tuple`.
     """
-    gtol, max_iter, corr_iter, max_step, min_step, max_jump, eig_floor, max_substeps = opts
-    n = k.shape[0]
-    out = _allocate(k, s)
-    m = _Machine(n)
-    m.pos[:] = _DONE
-    idx = np.flatnonzero(active)
-    # follow_ev: polish the start (a full descent at p0), then continue.
-    m.xk[idx], m.xs[idx], m.xp[idx] = k[idx], s[idx], p0[idx]
-    m.k0[idx], m.s0[idx], m.radius[idx] = k[idx], s[idx], np.inf
-    m.mode[idx] = _POLISH
-    m.maxit[idx] = max_iter
-    m.p[idx] = p0[idx]
-    m.h[idx] = np.minimum(np.abs(p1[idx] - p0[idx]), max_step)
-    m.sign[idx] = np.where(p1[idx] >= p0[idx], 1.0, -1.0)
-    m.pos[idx] = _E_START
-
     with np.errstate(all="ignore"):
-        while True:
-            need = np.flatnonzero((m.pos == _E_START) | (m.pos == _E_PRED) | (m.pos == _E_TRIAL))
-            if need.size == 0:
-                break
-            ev = mechanics._np_terms(m.xk[need], m.xs[need], m.xp[need], *prm, kobj[need], ko[need])
-            _after_evaluation(m, need, ev)
-            # Branch until every live env waits for an evaluation again.
-            while True:
-                moved = _descend_check(m, gtol, eig_floor)
-                moved |= _descend_end(m, p1, max_iter, min_step, max_step, max_jump)
-                moved |= _follow_loop(m, p1, corr_iter, min_step, max_jump, max_substeps)
-                if not moved:
-                    break
-
-    a = idx
-    out.kappa[a], out.side_strain[a], out.energy[a] = m.bk[a], m.bs[a], m.bU[a]
-    out.gradient_norm[a], out.min_eigenvalue[a] = m.bgn[a], m.blmin[a]
-    out.iterations[a], out.substeps[a], out.snapped[a] = m.iters[a], m.substeps[a], m.snapped[a]
-    out.status[a] = m.bstatus[a]
-    out.volume_change[a] = np.where(m.bok[a], m.bdv[a], np.nan)
-    return _result(out, p1, kobj, ko, prm[0])
+        out = masked.solve_masked(k, s, p0, p1, kobj, ko, prm, opts, active, NUMPY, compact=True)
+    return _result(_Raw(**out), p1, kobj, ko, prm[0])
 
 
-def _set_iterate(m: _Machine, i, kk, ss, ev_i) -> None:
-    """Make (kk, ss) with evaluation ``ev_i`` (terms' tuple, already indexed) the iterate of envs ``i``."""
-    ok, U, g0, g1, hkk, hks, hss, dv, vk, vs = ev_i
-    m.k[i], m.s[i], m.ok[i], m.U[i], m.g0[i], m.g1[i] = kk, ss, ok, U, g0, g1
-    m.hkk[i], m.hks[i], m.hss[i], m.dv[i], m.vk[i], m.vs[i] = hkk, hks, hss, dv, vk, vs
-    m.gn[i] = np.hypot(g0, g1)
-    m.lmin[i], m.lmax[i] = _sym2_eigvals(hkk, hks, hss)
+def solve_batch_torch(k, s, p0, p1, kobj, ko, prm, opts, active, *, compile: bool = False,
+                      max_rounds: int | None = None) -> Equilibrium:
+    """The torch back-end on float64 tensors of one device (no validation; see :func:`solve_batch`): the masked
+    solver on torch, an :class:`Equilibrium` of tensors on that device.
+
+    On a CPU it drops finished envs from the rounds and checks for live envs every round; on a GPU it runs
+    every env through every round (no gather) and checks every 8 rounds (a host sync each). ``compile``: run the
+    round through ``torch.compile`` (:func:`compiled_round`). ``max_rounds``: a fixed budget (unfinished envs are
+    flagged ``STATUS_BUDGET``).
+    """
+    ops = torch_ops(k.device)
+    cpu = k.device.type == "cpu"
+    out = masked.solve_masked(k, s, p0, p1, kobj, ko, prm, opts, active, ops, compact=cpu and not compile,
+                              check_every=1 if cpu else 8, max_rounds=max_rounds,
+                              round_fn=compiled_round() if compile else None)
+    return _result(_Raw(**out), p1, kobj, ko, prm[0], ops)
 
 
-def _after_evaluation(m: _Machine, need: np.ndarray, ev) -> None:
-    pos = m.pos[need]
-    ok = np.asarray(ev[0], dtype=bool)
-
-    # A predictor outside the domain: the corrector starts from the branch point instead (another evaluation).
-    sel = (pos == _E_PRED) & ~ok
-    i = need[sel]
-    m.xk[i], m.xs[i] = m.bk[i], m.bs[i]
-    m.pos[i] = _E_START
-
-    # The start of a descent (a predictor in the domain is one).
-    sel = ((pos == _E_START) | (pos == _E_PRED)) & ~((pos == _E_PRED) & ~ok)
-    i = need[sel]
-    _set_iterate(m, i, m.xk[i], m.xs[i], tuple(np.asarray(v)[sel] for v in ev))
-    m.it[i] = 0
-    m.dstatus[i] = STATUS_MAX_ITER
-    bad = ~ok[sel]
-    j = i[bad]  # start outside the domain: descend returns (k, s, inf, inf, -inf, 0, 5)
-    m.U[j], m.gn[j], m.lmin[j], m.dstatus[j] = np.inf, np.inf, -np.inf, STATUS_OUTSIDE
-    m.pos[j] = _D_END
-    m.pos[i[~bad]] = _D_CHECK
-
-    # A line-search trial.
-    sel = pos == _E_TRIAL
-    if not sel.any():
-        return
-    i = need[sel]
-    evs = tuple(np.asarray(v)[sel] for v in ev)
-    tok = ok[sel]
-    Un = evs[1]
-    nnorm = np.hypot(evs[2], evs[3])
-    U, t, gn = m.U[i], m.t[i], m.gn[i]
-    armijo = (Un <= U + ARMIJO * t * m.slope[i]) | (
-        (np.abs(Un - U) <= ENERGY_ROUNDOFF * np.maximum(1.0, np.abs(U))) & (nnorm < gn))
-    acc = tok & armijo
-    # Rejected: halve the step, or give up (status 3).
-    r = i[~acc]
-    m.t[r] *= 0.5
-    more = m.t[r] > MIN_STEP_LENGTH
-    rr = r[more]
-    _trial_point(m, rr)
-    m.pos[rr] = _E_TRIAL
-    rf = r[~more]
-    m.dstatus[rf] = STATUS_LINE_SEARCH
-    m.pos[rf] = _D_END
-    # Accepted: the trial becomes the iterate.
-    a = i[acc]
-    if a.size:
-        moved = np.abs(m.kn[a] - m.k[a]) + np.abs(m.sn[a] - m.s[a])
-        _set_iterate(m, a, m.kn[a], m.sn[a], tuple(v[acc] for v in evs))
-        stalled = moved == 0.0
-        m.dstatus[a[stalled]] = STATUS_STALLED
-        far = np.maximum(np.abs(m.k[a] - m.k0[a]), np.abs(m.s[a] - m.s0[a])) > m.radius[a]
-        guarded = (m.radius[a] < np.inf) & ((m.lmin[a] <= 0.0) | far)
-        m.pos[a] = np.where(stalled | guarded, _D_END, _D_CHECK)
+_COMPILED: list = []
 
 
-def _trial_point(m: _Machine, i: np.ndarray) -> None:
-    t = m.t[i]
-    kn = m.k[i] + t * m.d0[i]
-    sn = m.s[i] + t * m.d1[i]
-    kn = np.where(kn < 0.0, 0.0, kn)  # projected onto the domain's edge kappa~ = 0 (see solver.descend)
-    m.kn[i], m.sn[i] = kn, sn
-    m.xk[i], m.xs[i] = kn, sn
+def compiled_round():
+    """``torch.compile`` of the masked solver's round (compiled once per process, on first use)."""
+    if not _COMPILED:
+        import torch
 
-
-def _descend_check(m: _Machine, gtol: float, eig_floor: float) -> bool:
-    i = np.flatnonzero(m.pos == _D_CHECK)
-    if i.size == 0:
-        return False
-    gn, lmin, lmax = m.gn[i], m.lmin[i], m.lmax[i]
-    conv = (gn <= gtol) & (lmin > 0.0)
-    m.dstatus[i[conv]] = STATUS_CONVERGED
-    limit = ~conv & (m.it[i] >= m.maxit[i])
-    m.pos[i[conv | limit]] = _D_END
-    go = ~(conv | limit)
-    i = i[go]
-    if i.size == 0:
-        return True
-    gn, lmin, lmax = gn[go], lmin[go], lmax[go]
-    m.it[i] += 1
-    g0, g1, hkk, hks, hss = m.g0[i], m.g1[i], m.hkk[i], m.hks[i], m.hss[i]
-    scale = np.maximum(np.maximum(np.abs(lmin), np.abs(lmax)), 1.0)
-    # Newton where the Hessian is safely positive definite, else on the eigenbasis (see solver.descend).
-    det = hkk * hss - hks * hks
-    newton = lmin >= eig_floor * scale
-    ct, st = _sym2_eigvec(hkk, hks, hss)
-    l1 = np.maximum(np.abs(lmin), eig_floor * scale)
-    l2 = np.maximum(np.abs(lmax), eig_floor * scale)
-    a2 = g0 * ct + g1 * st
-    a1 = -g0 * st + g1 * ct
-    d0 = np.where(newton, (hks * g1 - hss * g0) / det, -(a2 / l2) * ct + (a1 / l1) * st)
-    d1 = np.where(newton, (hks * g0 - hkk * g1) / det, -(a2 / l2) * st - (a1 / l1) * ct)
-    slope = g0 * d0 + g1 * d1
-    neg = (lmin <= 0.0) & (gn <= ESCAPE_GRADIENT * gtol)
-    if neg.any():
-        v0, v1 = -st, ct
-        step = ESCAPE_STEP * np.maximum(1.0, np.abs(m.k[i]))
-        step = np.where(g0 * v0 + g1 * v1 > 0.0, -step, step)
-        nd0, nd1 = step * v0, step * v1
-        d0 = np.where(neg, nd0, d0)
-        d1 = np.where(neg, nd1, d1)
-        slope = np.where(neg, np.minimum(g0 * nd0 + g1 * nd1, 0.0), slope)
-    m.d0[i], m.d1[i], m.slope[i] = d0, d1, slope
-    m.t[i] = 1.0
-    _trial_point(m, i)
-    m.pos[i] = _E_TRIAL
-    return True
-
-
-def _descend_end(m: _Machine, p1, max_iter, min_step, max_step, max_jump) -> bool:
-    i = np.flatnonzero(m.pos == _D_END)
-    if i.size == 0:
-        return False
-    # descend's epilogue.
-    floor = (m.dstatus[i] != STATUS_CONVERGED) & (m.gn[i] <= ACCEPT_GTOL) & (m.lmin[i] > 0.0)
-    m.dstatus[i[floor]] = STATUS_ROUNDOFF
-    mode = m.mode[i]
-    m.iters[i] += m.it[i]
-
-    # The polish at p0: its result is the branch state.
-    a = i[mode == _POLISH]
-    _accept(m, a)
-    m.pos[a] = _F_LOOP
-
-    # A corrector: accept the sub-step on the same branch, else shrink it, else a fold.
-    c = i[mode == _CORRECTOR]
-    jump = np.maximum(np.abs(m.k[c] - m.bk[c]), np.abs(m.s[c] - m.bs[c]))
-    acc = (m.dstatus[c] <= STATUS_ROUNDOFF) & (jump <= max_jump)
-    ca = c[acc]
-    m.p[ca] = m.pt[ca]
-    _accept(m, ca)
-    m.substeps[ca] += 1
-    grow = ca[m.it[ca] <= EASY_CORRECTOR_ITERATIONS]
-    m.h[grow] = np.minimum(GROW * m.h[grow], max_step)
-    m.pos[ca] = _F_LOOP
-    cr = c[~acc]
-    shrink = m.h[cr] > min_step
-    cs = cr[shrink]
-    m.h[cs] = np.maximum(SHRINK * m.h[cs], min_step)
-    m.pos[cs] = _F_LOOP
-    cf = cr[~shrink]  # the branch ends: descend fully from the branch point at pt
-    m.xk[cf], m.xs[cf], m.xp[cf] = m.bk[cf], m.bs[cf], m.pt[cf]
-    m.k0[cf], m.s0[cf], m.radius[cf] = m.bk[cf], m.bs[cf], np.inf
-    m.maxit[cf] = max_iter
-    m.mode[cf] = _FOLD
-    m.pos[cf] = _E_START
-
-    # After a fold.
-    f = i[mode == _FOLD]
-    m.substeps[f] += 1
-    m.snapped[f] |= np.maximum(np.abs(m.k[f] - m.bk[f]), np.abs(m.s[f] - m.bs[f])) > max_jump
-    m.p[f] = m.pt[f]
-    _accept(m, f)
-    m.h[f] = STEP_AFTER_FOLD * max_step
-    m.pos[f] = _F_LOOP
-    return True
-
-
-def _accept(m: _Machine, i: np.ndarray) -> None:
-    """The iterate of envs ``i`` becomes their branch state."""
-    m.bk[i], m.bs[i], m.bU[i], m.bgn[i], m.blmin[i], m.bstatus[i] = m.k[i], m.s[i], m.U[i], m.gn[i], m.lmin[i], \
-        m.dstatus[i]
-    m.bok[i], m.bhkk[i], m.bhks[i], m.bhss[i] = m.ok[i], m.hkk[i], m.hks[i], m.hss[i]
-    m.bvk[i], m.bvs[i], m.bdv[i] = m.vk[i], m.vs[i], m.dv[i]
-
-
-def _follow_loop(m: _Machine, p1, corr_iter, min_step, max_jump, max_substeps) -> bool:
-    i = np.flatnonzero(m.pos == _F_LOOP)
-    if i.size == 0:
-        return False
-    done = (m.p[i] == p1[i]) | (m.bstatus[i] > STATUS_ROUNDOFF)
-    m.pos[i[done]] = _DONE
-    i = i[~done]
-    spent = m.attempts[i] >= max_substeps  # the sub-step budget (see solver.follow_ev)
-    m.bstatus[i[spent]] = STATUS_BUDGET
-    m.pos[i[spent]] = _DONE
-    i = i[~spent]
-    m.attempts[i] += 1
-    if i.size == 0:
-        return True
-    hkk, hks, hss, vk, vs = m.bhkk[i], m.bhks[i], m.bhss[i], m.bvk[i], m.bvs[i]
-    det = hkk * hss - hks * hks
-    tangent = (hkk > 0.0) & (det > 0.0)
-    tk = np.where(tangent, (hss * vk - hks * vs) / det, 0.0)
-    ts = np.where(tangent, (hkk * vs - hks * vk) / det, 0.0)
-    rate = np.maximum(np.abs(tk), np.abs(ts))
-    h = m.h[i]
-    limit = tangent & (h * rate > PREDICTED_JUMP_FRACTION * max_jump)
-    h = np.where(limit, np.maximum(PREDICTED_JUMP_FRACTION * max_jump / np.where(limit, rate, 1.0), min_step), h)
-    m.h[i] = h
-    p = m.p[i]
-    remaining = np.abs(p1[i] - p)
-    pt = np.where(h >= remaining * (1.0 - LAST_STEP_SLACK), p1[i], p + m.sign[i] * h)
-    m.pt[i] = pt
-    bk, bs = m.bk[i], m.bs[i]
-    m.xk[i] = np.where(tangent, bk + (pt - p) * tk, bk)
-    m.xs[i] = np.where(tangent, bs + (pt - p) * ts, bs)
-    m.xp[i] = pt
-    m.k0[i], m.s0[i], m.radius[i] = bk, bs, max_jump
-    m.maxit[i] = corr_iter
-    m.mode[i] = _CORRECTOR
-    m.pos[i] = np.where(tangent, _E_PRED, _E_START)
-    return True
+        _COMPILED.append(torch.compile(masked._round, dynamic=True))
+    return _COMPILED[0]

@@ -67,8 +67,11 @@ def test_shipped_statistics_are_numbers_and_predictions_unchanged():
     assert pol.action_mode == "setpoint"
     obs = (np.arange(21, dtype=np.float32) / 20).reshape(-1, 1)
     u, _ = pol.model.predict(pol.normalize(obs), deterministic=True)
-    np.testing.assert_array_equal(np.asarray(u, np.float32).ravel(), np.array(OLD_SETPOINTS, np.float32))
-    np.testing.assert_array_equal(pol(obs).ravel(), np.array(OLD_ACTIONS, np.float32))
+    # float32 network outputs: equal to a few ulps (torch's CPU kernels differ in the last bit between CPUs: seen
+    # 1.2e-7 on one machine of this project's kind)
+    np.testing.assert_allclose(np.asarray(u, np.float32).ravel(), np.array(OLD_SETPOINTS, np.float32), rtol=2e-6,
+                               atol=1e-6)
+    np.testing.assert_allclose(pol(obs).ravel(), np.array(OLD_ACTIONS, np.float32), rtol=2e-6, atol=1e-6)
 
 
 def test_malicious_pickle_beside_a_model_is_not_loaded(tmp_path):

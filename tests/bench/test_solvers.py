@@ -16,6 +16,7 @@ from pneunet_env import ActuatorParams, solve_equilibrium  # noqa: E402
 from pneunet_env.bench import solvers  # noqa: E402
 from pneunet_env.bench.models import AUTO_TOLERANCE  # noqa: E402
 from pneunet_env.cli import main  # noqa: E402
+from pneunet_env.physics.solver import ACCEPT_GTOL  # noqa: E402
 
 OUTPUTS = ("solvers.json", "solvers_details.json", "speed_accuracy.png", "stability_map.png", "step_size.png")
 FAILURE_TEXTS = set(solvers._FAILURE_TEXT.values())
@@ -47,7 +48,8 @@ def test_quick_run_writes_its_outputs(quick_run):
 def test_records_have_the_documented_fields(quick_run):
     _, _, records, details = quick_run
     for r in records:
-        assert {"method", "scene", "time_s", "error", "failure", "default"} <= set(r)
+        assert {"method", "scene", "time_s", "error", "failure", "default", "max_gradient_norm",
+                "min_hessian_eigenvalue"} <= set(r)
         assert r["time_s"] > 0.0 and math.isfinite(r["time_s"])
         assert r["error"] is None or r["error"] >= 0.0
         assert r["failure"] is None or r["failure"] in FAILURE_TEXTS
@@ -74,6 +76,26 @@ def test_default_solver_never_fails_and_is_accurate(quick_run):
     for row in details["step_size"]["rows"]:
         if row["method"] == "package":
             assert row["failures"] == 0 and row["error"] <= 1e-9 and row["loop"] == "captured", row
+
+
+@pytest.mark.slow  # the benchmark's end-to-end quick run (its fixture takes 5-11 s)
+def test_hand_scale_scenes_are_solved_like_the_others(quick_run):
+    # issue #12: the catalogue's stiffest (k~ ~ 40 at w kappa_obj = 1/3) and softest corners, through the same
+    # paths as every scene: every package answer a converged minimum within 1e-9 of the 30-digit reference
+    _, _, records, details = quick_run
+    scenes = {s["name"]: s for s in details["scenes"]}
+    corners = solvers.catalogue_corners()
+    for name, corner in (("hand stiff", corners["stiff"]), ("hand soft", corners["soft"])):
+        assert scenes[name]["object_stiffness"] == pytest.approx(corner.object_stiffness)
+        assert scenes[name]["object_curvature"] == pytest.approx(corner.object_curvature)
+        r = next(r for r in records if r["scene"] == name and r["method"] == "package")
+        assert r["failure"] is None and r["outcomes"] == {"correct": r["solves"]}, r
+        assert r["error"] <= 1e-9, r
+        assert r["max_gradient_norm"] <= ACCEPT_GTOL and r["min_hessian_eigenvalue"] > 0.0, r
+    assert scenes["hand stiff"]["object_stiffness"] > 30.0  # far beyond the paper ring's k~ <= 0.1
+    # ... and the plain methods still break there (plain Newton leaves the domain once the stiff contact starts)
+    newton = next(r for r in records if r["scene"] == "hand stiff" and r["method"] == "plain Newton")
+    assert newton["failure"] is not None
 
 
 @pytest.mark.slow  # the benchmark's end-to-end quick run (its fixture takes 5-11 s)
@@ -179,3 +201,35 @@ def test_anchored_ramp_always_holds_the_anchor():
         assert 0.639 in ps and max(ps) <= 1.2 and min(ps) > 0.0
         n = (len(ps) + 1) // 2
         assert np.all(np.diff(ps[:n]) > 0) and np.all(np.diff(ps[n - 1:]) < 0)
+
+
+def test_hand_scale_scenes_are_the_catalogues_extreme_corners():
+    """The study's hand-scale scenes sit at the largest and the smallest k~ of the catalogue's in-model classes."""
+    from pneunet_env.catalogue import load_catalogue, stiffness_range
+
+    inside = [c for c in load_catalogue().values() if c.in_annulus_model]
+    k_max = max(stiffness_range(c)[1] for c in inside)
+    k_min = min(stiffness_range(c)[0] for c in inside)
+    scenes = {s.name: s for s in solvers.make_scenes(quick=True)}
+    stiff, soft = scenes["hand stiff"], scenes["hand soft"]
+    assert stiff.object_stiffness == pytest.approx(k_max) and soft.object_stiffness == pytest.approx(k_min)
+    corners = solvers.catalogue_corners()
+    assert stiff.object_curvature == pytest.approx(5.0 / corners["stiff"].radius_mm)
+    assert soft.object_curvature == pytest.approx(5.0 / corners["soft"].radius_mm)
+    for scene in (stiff, soft):  # the environment's episode: up to p~ = 1.2 (60 kPa) and back
+        assert max(scene.pressures) == pytest.approx(1.2) and scene.pressures[-1] < scene.pressures[-2]
+
+
+def test_package_solver_on_the_stiffest_catalogue_corner_matches_the_reference():
+    """k~ ~ 40 at w kappa_obj = 1/3 (contact ratio ~3e3): the path the study runs, every answer a converged
+    minimum, all within 1e-9 of the 30-digit reference."""
+    scene = next(s for s in solvers.make_scenes(quick=True) if s.name == "hand stiff")
+    k, c = scene.object_stiffness, scene.object_curvature
+    ref = solvers.reference_states(scene.pressures, k, c, scene.params)
+    run = solvers.solve_path(solvers.PackageMethod("package", "package"), scene.pressures, k, c, scene.params)
+    outcomes = [solvers.classify(run.states[i], ref[i], p, k, c, scene.params) for i, p in enumerate(scene.pressures)]
+    assert {o for o, _ in outcomes} == {"correct"}
+    assert max(e for _, e in outcomes) <= 1e-9
+    grad, eig = solvers._stationarity(run.states, scene)
+    assert grad <= ACCEPT_GTOL and eig > 0.0
+    assert abs(ref[len(ref) // 2, 0] - c) < 0.01 * c  # at p~ = 1.2 the curvature is held within 1 % of the object's
