@@ -587,6 +587,72 @@ class Outcome(NamedTuple):
     reward: Any
 
 
+def make_rules(number, maximum, jit=None):
+    """Build the task's rules from two operations: written once, instantiated on Python scalars (one env), numpy
+    and torch arrays (:func:`transition`), and compiled by numba for the fused vector step
+    (:mod:`pneunet_env.fused`), the way :func:`pneunet_env.physics.mechanics.make_terms` builds the energy.
+
+    ``number(flag)`` makes a flag a float for the reward; ``maximum(a, b)`` is the elementwise maximum; ``jit``
+    decorates the built function (``numba.njit``). Returns ``rules(step, damaged, dropped, peak, F, delta,
+    in_contact, failure, crush, grip, failed, squeeze_steps, episode_steps, reward_hold, reward_success,
+    penalty_damage, penalty_slip, terminate_on_damage, terminate_on_slip)`` -> ``(step, damaged, dropped, peak,
+    in_hold, overstressed, crushed, damage_event, slipping, drop_event, held, terminated, truncated, success,
+    reward)``; see :func:`transition` for what each is.
+    """
+
+    def rules(step0, damaged0, dropped0, peak0, F, delta, in_contact, failure, crush, grip, failed, squeeze_steps,
+              episode_steps, reward_hold, reward_success, penalty_damage, penalty_slip, terminate_on_damage,
+              terminate_on_slip):
+        # Written with the operators & | ^ (not np.logical_*): they act elementwise on bool arrays and tensors and
+        # on Python/numpy/numba bools alike, and cost far less than a ufunc call on scalars. ``x ^ True`` is "not x".
+        step = step0 + 1
+        in_hold = step > squeeze_steps
+        end = step >= episode_steps
+        overstressed = F > failure
+        crushed = in_contact & (delta > crush)
+        damage_now = overstressed | crushed
+        damage_event = damage_now & (damaged0 ^ True)
+        damaged = damaged0 | damage_now
+        slipping = in_hold & (F < grip)
+        drop_event = slipping & (dropped0 ^ True)
+        dropped = dropped0 | slipping
+        intact = (damaged | dropped | failed) ^ True
+        held = in_hold & intact
+        terminated = (damage_event & terminate_on_damage) | (drop_event & terminate_on_slip)
+        truncated = (terminated ^ True) & (end | failed)
+        success = end & intact
+        reward = (reward_hold * number(held) + reward_success * number(success) - penalty_damage * number(damage_event)
+                  - penalty_slip * number(drop_event))
+        return (step, damaged, dropped, maximum(peak0, F), in_hold, overstressed, crushed, damage_event, slipping,
+                drop_event, held, terminated, truncated, success, reward)
+
+    return rules if jit is None else jit(rules)
+
+
+def _same(x):
+    return x
+
+
+def _scalar_peak(a, b):
+    # one environment: the same number as np.maximum gives (an np.float64), without a ufunc call
+    return _float64(b if b > a else a)
+
+
+_scalar_rules = make_rules(_same, _scalar_peak)
+_numpy_rules = make_rules(_same, np.maximum)
+_TORCH_RULES: list = []
+
+
+def _rules_for(contact_force, peak_force):
+    if is_torch(contact_force):
+        if not _TORCH_RULES:
+            _TORCH_RULES.append(make_rules(lambda f: f.double(), ops_for(contact_force).maximum))
+        return _TORCH_RULES[0]
+    if isinstance(contact_force, np.ndarray) or isinstance(peak_force, np.ndarray):
+        return _numpy_rules
+    return _scalar_rules
+
+
 def transition(
     state: TaskState,
     contact_force,
@@ -606,48 +672,21 @@ def transition(
         thresholds: the object's (:func:`object_thresholds`).
         solver_failed: the solve did not converge (the state was kept): ends the episode, ``truncated``.
         params: the task's numbers.
+
+    The rules themselves are :func:`make_rules`'s, on scalars, numpy arrays or torch tensors.
     """
-    # Written with the operators & | ^ (not np.logical_*): they act elementwise on bool arrays and on
-    # Python/numpy bools alike, and cost far less than a ufunc call on scalars. ``x ^ True`` is "not x".
-    step = state.step + 1
-    in_hold = step > params.squeeze_steps
-    end = step >= params.squeeze_steps + params.hold_steps
-    overstressed = contact_force > thresholds.failure_traction
-    crushed = in_contact & (indentation > thresholds.crush_indentation)
-    damage_now = overstressed | crushed
-    damage_event = damage_now & (state.damaged ^ True)
-    damaged = state.damaged | damage_now
-    slipping = in_hold & (contact_force < thresholds.grip_traction)
-    drop_event = slipping & (state.dropped ^ True)
-    dropped = state.dropped | slipping
-    intact = (damaged | dropped | solver_failed) ^ True
-    held = in_hold & intact
-    terminated = (damage_event & params.terminate_on_damage) | (drop_event & params.terminate_on_slip)
-    truncated = (terminated ^ True) & (end | solver_failed)
-    success = end & intact
-    reward = (
-        params.reward_hold * _number(held)
-        + params.reward_success * _number(success)
-        - params.penalty_damage * _number(damage_event)
-        - params.penalty_slip * _number(drop_event)
-    )
-    if is_torch(contact_force):
-        peak = ops_for(contact_force).maximum(state.peak_force, contact_force)
-    elif isinstance(contact_force, np.ndarray) or isinstance(state.peak_force, np.ndarray):
-        peak = np.maximum(state.peak_force, contact_force)
-    else:  # one environment: the same number (an np.float64, as np.maximum gives) without a ufunc call
-        peak = _float64(contact_force if contact_force > state.peak_force else state.peak_force)
+    rules = _rules_for(contact_force, state.peak_force)
+    (step, damaged, dropped, peak, in_hold, overstressed, crushed, damage_event, slipping, drop_event, held,
+     terminated, truncated, success, reward) = rules(
+        state.step, state.damaged, state.dropped, state.peak_force, contact_force, indentation, in_contact,
+        thresholds.failure_traction, thresholds.crush_indentation, thresholds.grip_traction, solver_failed,
+        params.squeeze_steps, params.squeeze_steps + params.hold_steps, params.reward_hold, params.reward_success,
+        params.penalty_damage, params.penalty_slip, params.terminate_on_damage, params.terminate_on_slip)
     return Outcome(
         TaskState(step, damaged, dropped, peak),
         in_hold, overstressed, crushed, damage_event, slipping, drop_event, held, terminated, truncated, success,
         reward,
     )
-
-
-def _number(flag):
-    """A flag as a number for the reward: a float64 tensor for a bool tensor (torch would make float32 of
-    ``float * bool``); numpy arrays and Python bools are used as they are."""
-    return flag.double() if is_torch(flag) else flag
 
 
 # ---------------------------------------------------------------------------------------------
@@ -730,10 +769,10 @@ def newton_contact(kappa, side_strain, p0, p1, obj: GraspObject, params: EnvPara
 
 
 def newton_contact_batch(kappa, side_strain, p0, p1, obj: GraspObject, params: EnvParams, backend: str = "auto",
-                         parallel: bool | None = None) -> Equilibrium:
+                         parallel: bool | None = None, threads: int | None = None) -> Equilibrium:
     """The pneu-net's quasi-static step for ``(N,)`` envs (:func:`pneunet_env.physics.batched.solve_batch`)."""
     return solve_batch(kappa, side_strain, p0, p1, obj.stiffness, obj.curvature, params.actuator_params,
-                       params.solver_options, backend=backend, validate=False, parallel=parallel)
+                       params.solver_options, backend=backend, validate=False, parallel=parallel, threads=threads)
 
 
 def torch_contact_batch(kappa, side_strain, p0, p1, obj: GraspObject, params: EnvParams, compile: bool = False,

@@ -516,8 +516,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quick", action="store_true", help="fewer steps and repeats (CI: well under a minute)")
     parser.add_argument("--out", type=Path, default=Path("bench_out/speed"),
                         help="output folder (speed.json, speed.png)")
-    parser.add_argument("--backend", choices=("auto", "numba", "numpy"), default="auto",
-                        help="the vector env's batched solver (default: numba if installed)")
+    parser.add_argument("--backend", choices=("auto", "numba", "numpy", "torch"), nargs="+", default=["auto"],
+                        help="the vector env's batched solver (default: numba if installed). Several, or torch: "
+                             "the backend sweep instead (env-steps/s against N per backend and device, against "
+                             "CartPoleVectorEnv and numba; backends.json, backends.png)")
+    parser.add_argument("--device", nargs="+", default=None,
+                        help="torch's devices for the backend sweep (default: cpu), e.g. --device cpu cuda")
+    parser.add_argument("--num-envs", type=int, nargs="+", default=None,
+                        help="the sweep's N (default: 256 4096 16384; 16384 262144 1048576 4194304 on a GPU)")
+    parser.add_argument("--compile", action="store_true", help="torch: run the solver's round through torch.compile")
     add_progress_argument(parser)
     parser.add_argument("--plot-only", action="store_true",
                         help="measure nothing: redraw speed.png and reprint the table from OUT/speed.json")
@@ -526,8 +533,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     from pneunet_env.physics._jit import HAVE_NUMBA
 
-    if args.backend == "numba" and not HAVE_NUMBA:
+    backends = list(dict.fromkeys(args.backend))
+    if "numba" in backends and not HAVE_NUMBA:
         raise SystemExit("--backend numba needs numba (pip install pneunet-env[fast])")
+    if len(backends) > 1 or backends == ["torch"] or args.device or args.num_envs or args.compile:
+        return _run_sweep(args, backends)
+    args.backend = backends[0]
     out: Path = args.out
     if args.plot_only:
         path = out / "speed.json"
@@ -544,4 +555,36 @@ def run(args: argparse.Namespace) -> int:
     plot(res, out / "speed.png")
     print(format_table(res))
     print(f"\nwrote {out}/speed.json, speed.png ({res['wall_s']:.1f} s)")
+    return 0
+
+
+def _run_sweep(args: argparse.Namespace, backends: list[str]) -> int:
+    from pneunet_env.bench import backends as sweep
+    from pneunet_env.physics._jit import HAVE_NUMBA
+
+    if "auto" in backends:
+        backends = [("numba" if HAVE_NUMBA else "numpy") if b == "auto" else b for b in backends]
+        backends = list(dict.fromkeys(backends))
+    if "torch" in backends:
+        try:
+            import torch
+        except ImportError:
+            raise SystemExit("--backend torch needs torch (pip install torch)") from None
+    devices = args.device or ["cpu"]
+    if "torch" in backends:
+        for d in devices:
+            try:
+                torch.zeros(1, device=d)
+            except (RuntimeError, AssertionError) as exc:
+                raise SystemExit(f"--device {d}: not available ({exc})") from None
+    gpu = any(str(d).startswith("cuda") for d in devices) and "torch" in backends
+    num_envs = args.num_envs or ([16384, 262144, 1048576, 4194304] if gpu else [256, 4096, 16384])
+    if any(n < 1 for n in num_envs):
+        raise SystemExit(f"--num-envs must be positive integers, got {num_envs}")
+    res = sweep.run_sweep(backends, devices, num_envs, env_steps=100_000 if args.quick else 2_000_000,
+                          min_steps=3 if args.quick else 20, max_steps=20 if args.quick else 200,
+                          compile=args.compile)
+    sweep.write(res, args.out)
+    print(sweep.format_sweep(res))
+    print(f"\nwrote {args.out}/backends.json, backends.png ({res['wall_s']:.1f} s)")
     return 0

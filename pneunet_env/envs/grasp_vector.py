@@ -30,8 +30,9 @@ from gymnasium.vector.utils import batch_space
 from pneunet_env import task
 from pneunet_env.config import EnvConfig, load_config
 from pneunet_env.envs.grasp import observation_space
+from pneunet_env.fused import HAVE_FUSED, fused_step
 from pneunet_env.objects import GraspObject
-from pneunet_env.physics.batched import BACKENDS
+from pneunet_env.physics.batched import BACKENDS, check_threads
 from pneunet_env.physics.solver import Equilibrium
 from pneunet_env.physics.xp import NUMPY, is_torch, torch_ops
 
@@ -305,6 +306,11 @@ class PneuNetGraspVectorEnv(VectorEnv):
     * ``parallel``: numba only: split the solve over the cores (numba's threads, ``NUMBA_NUM_THREADS``); ``None``
       from :data:`pneunet_env.physics.batched.PARALLEL_MIN_ENVS` envs on. Pass ``False`` when other processes keep the
       cores busy: numba's threads then wait on each other (a step can take 10x longer).
+    * ``fused``: numba only (default there): the whole step as one compiled loop over the envs
+      (:func:`pneunet_env.fused.fused_step`: the pressure update, the solve, the rules and the observation), bit for
+      bit :func:`pneunet_env.task.step`'s result; ``False``: the array step around the batched solve.
+    * ``num_threads``: numba only: the parallel loop's threads (``None``: chosen by N,
+      :func:`pneunet_env.physics.batched.threads_for`: one per 512 envs, at most ``NUMBA_NUM_THREADS``).
 
     ``reset(options=...)`` takes the single env's pins (applied to every sub-env reset by the call; a value
     may be an ``(N,)`` array, one per sub-env) and ``"reset_mask"`` (an ``(N,)`` bool array: reset only
@@ -336,6 +342,8 @@ class PneuNetGraspVectorEnv(VectorEnv):
         autoreset_mode: AutoresetMode | str = AutoresetMode.SAME_STEP,
         device: Any = None,
         compile: bool = False,
+        num_threads: int | None = None,
+        fused: bool | None = None,
         **overrides: Any,
     ) -> None:
         try:
@@ -348,6 +356,9 @@ class PneuNetGraspVectorEnv(VectorEnv):
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
         if backend not in BACKENDS:
             raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
+        if backend == "torch" and num_threads is not None:
+            raise ValueError(f"num_threads is for the numba backend (torch: torch.set_num_threads), "
+                             f"got {num_threads!r}")
         if backend != "torch" and (device is not None or compile):
             raise ValueError(f"device and compile are for backend='torch' only, got device={device!r}, "
                              f"compile={compile!r} with backend={backend!r}")
@@ -392,7 +403,20 @@ class PneuNetGraspVectorEnv(VectorEnv):
         if backend == "torch":
             self._contact = functools.partial(task.torch_contact_batch, compile=compile)
         else:
-            self._contact = functools.partial(task.newton_contact_batch, backend=backend, parallel=parallel)
+            check_threads(num_threads)
+            self._contact = functools.partial(task.newton_contact_batch, backend=backend, parallel=parallel,
+                                              threads=num_threads)
+        numba_backend = backend == "numba" or (backend == "auto" and HAVE_FUSED)
+        if fused is None:
+            fused = numba_backend
+        if not isinstance(fused, bool) or (fused and not numba_backend):
+            raise ValueError(f"fused must be True (numba backend only) or False, got {fused!r} with "
+                             f"backend={backend!r}")
+        self.fused = fused
+        if fused:
+            self._step_fn = functools.partial(fused_step, params=self._params, parallel=parallel, threads=num_threads)
+        else:
+            self._step_fn = functools.partial(task.step, params=self._params, contact=self._contact)
         self.single_action_space = spaces.Box(-1.0, 1.0, (1,), np.float32)
         self.single_observation_space = observation_space(self.config)
         self.action_space = batch_space(self.single_action_space, n)
@@ -563,7 +587,7 @@ class PneuNetGraspVectorEnv(VectorEnv):
         if self._state is None:
             raise ResetNeeded("call reset() before step()")
         a = task.batch_actions(actions, self.num_envs, self.device)
-        res = task.step(self._state, a, self._params, self._contact)
+        res = self._step_fn(self._state, a)
         terminated, truncated, reward = res.terminated, res.truncated, res.reward
         if self._xp is NUMPY:
             terminated = np.asarray(terminated, dtype=bool)

@@ -49,7 +49,8 @@ from pneunet_env.physics.solver import (
 )
 from pneunet_env.physics.xp import NUMPY, Ops, is_torch, torch_ops
 
-__all__ = ["BACKENDS", "PARALLEL_MIN_ENVS", "solve_batch", "solve_batch_numba", "solve_batch_numpy"]
+__all__ = ["BACKENDS", "PARALLEL_MIN_ENVS", "ENVS_PER_THREAD", "threads_for", "check_threads", "solve_batch",
+           "solve_batch_numba", "solve_batch_numpy", "solve_batch_torch"]
 
 BACKENDS = ("auto", "numba", "numpy", "torch")
 
@@ -155,6 +156,7 @@ def solve_batch(
     validate: bool = True,
     parallel: bool | None = None,
     device=None,
+    threads: int | None = None,
 ) -> Equilibrium:
     """Follow N equilibria from pressures ``p0`` to ``p1`` (quasi-static loading), all at once.
 
@@ -177,10 +179,12 @@ def solve_batch(
         validate: check the inputs (finite, signs, ranges) and raise ``ValueError`` naming the first
             bad value. A start state outside the domain always raises.
         parallel: numba back-end only: split the envs over the cores (numba's threads). ``None``: from
-            :data:`PARALLEL_MIN_ENVS` envs on. ``False`` where the cores are busy with other work (numba's
-            OpenMP threads wait actively and lose badly when oversubscribed).
+            :data:`PARALLEL_MIN_ENVS` envs on, with :func:`threads_for` threads. ``False`` where the cores are busy
+            with other work (numba's OpenMP threads wait actively and lose badly when oversubscribed).
         device: torch back-end only: the device (``"cpu"``, ``"cuda"``, ...); ``None``: that of the first tensor
             input, else the CPU.
+        threads: numba back-end only: the number of threads of the parallel loop (``1 <= threads <=
+            NUMBA_NUM_THREADS``; 1 runs the serial loop). ``None``: :func:`threads_for` ``(N)``.
 
     Returns:
         An :class:`~pneunet_env.physics.solver.Equilibrium` of ``(N,)`` arrays (fresh each call); entry ``i``
@@ -195,6 +199,7 @@ def solve_batch(
                                       active, validate, device)
     if device is not None:
         raise ValueError(f"device is for backend='torch' only, got device={device!r} with backend={backend!r}")
+    check_threads(threads)
     (k, s, a0, a1, kobj, ko), act = _prepare(kappa, side_strain, p0, p1, object_stiffness, object_curvature,
                                              active, validate)
     prm = params_tuple(params)
@@ -202,7 +207,7 @@ def solve_batch(
     if backend == "numpy" or (backend == "auto" and not HAVE_NUMBA):
         result = solve_batch_numpy(k, s, a0, a1, kobj, ko, prm, opts, act)
     else:
-        result = solve_batch_numba(k, s, a0, a1, kobj, ko, prm, opts, act, parallel)
+        result = solve_batch_numba(k, s, a0, a1, kobj, ko, prm, opts, act, parallel, threads)
     _check_domain(result, k, s)
     return result
 
@@ -273,8 +278,19 @@ def _allocate(k, s) -> _Raw:
 
 _PARALLEL_LOCK = threading.Lock()
 
-PARALLEL_MIN_ENVS = 256
-"""Below this many envs the serial compiled loop is used (thread start-up costs more than it saves)."""
+ENVS_PER_THREAD = 512
+"""The automatic thread count gives each of numba's threads at least this many envs (:func:`threads_for`)."""
+
+PARALLEL_MIN_ENVS = 2 * ENVS_PER_THREAD
+"""Below this many envs the serial compiled loop is used: a thread's start-up and wake-up cost more than it saves,
+and on a loaded machine far more (measured on a loaded 2-core machine at N = 1,024: 132 k env-steps/s with the
+parallel loop, 546 k with one thread)."""
+
+
+def threads_for(n: int) -> int:
+    """numba threads for ``n`` envs: ``n // ENVS_PER_THREAD``, at least 1, at most numba's ``NUMBA_NUM_THREADS``."""
+    top = numba.config.NUMBA_NUM_THREADS if HAVE_NUMBA else 1
+    return int(max(1, min(top, n // ENVS_PER_THREAD)))
 
 def _source_stamp() -> int | None:
     """A hash of the sources the compiled loop is built from (numba's cache only watches this file); None if
@@ -329,7 +345,17 @@ if HAVE_NUMBA:
     _loop_parallel = numba.njit(_make_loop(_stamp or 0, 1), nogil=True, parallel=True, cache=_cache)
 
 
-def solve_batch_numba(k, s, p0, p1, kobj, ko, prm, opts, active, parallel: bool | None = None) -> Equilibrium:
+def check_threads(threads) -> None:
+    """``ValueError`` naming ``threads`` unless it is ``None`` or an int in ``[1, NUMBA_NUM_THREADS]``."""
+    if threads is None:
+        return
+    top = numba.config.NUMBA_NUM_THREADS if HAVE_NUMBA else 1
+    if isinstance(threads, bool) or not isinstance(threads, (int, np.integer)) or not 1 <= threads <= top:
+        raise ValueError(f"threads must be None or an integer in [1, {top}] (NUMBA_NUM_THREADS), got {threads!r}")
+
+
+def solve_batch_numba(k, s, p0, p1, kobj, ko, prm, opts, active, parallel: bool | None = None,
+                      threads: int | None = None) -> Equilibrium:
     """The compiled back-end on prepared float64 arrays (no validation; see :func:`solve_batch`).
 
     ``prm`` is :func:`pneunet_env.physics.solver.params_tuple`, ``opts`` :meth:`SolverOptions.as_tuple`.
@@ -339,13 +365,19 @@ def solve_batch_numba(k, s, p0, p1, kobj, ko, prm, opts, active, parallel: bool 
     if not HAVE_NUMBA:
         raise RuntimeError("the numba back-end needs numba")
     out = _allocate(k, s)
+    n_threads = threads_for(k.shape[0]) if threads is None else int(threads)
     if parallel is None:
-        parallel = k.shape[0] >= PARALLEL_MIN_ENVS
+        parallel = k.shape[0] >= PARALLEL_MIN_ENVS and n_threads > 1
     args = (k, s, p0, p1, kobj, ko, prm, opts, active, out.kappa, out.side_strain, out.energy, out.gradient_norm,
             out.min_eigenvalue, out.iterations, out.substeps, out.snapped, out.status, out.volume_change)
     if parallel:
         with _PARALLEL_LOCK:  # one parallel loop at a time (the workqueue layer aborts on concurrent use)
-            _loop_parallel(*args)
+            before = numba.get_num_threads()
+            numba.set_num_threads(n_threads)
+            try:
+                _loop_parallel(*args)
+            finally:
+                numba.set_num_threads(before)
     else:
         _loop_serial(*args)
     return _result(out, p1, kobj, ko, prm[0])

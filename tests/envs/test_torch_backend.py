@@ -23,7 +23,12 @@ REFERENCE = "numba" if HAVE_NUMBA else "numpy"
 TOL = 1e-9
 
 
-@pytest.mark.parametrize("scene", make_scenes(quick=True), ids=lambda s: s.name)
+QUICK_SCENES = ("fold",)  # the rest run with the slow tests
+
+
+@pytest.mark.parametrize("scene", [
+    sc if sc.name in QUICK_SCENES else pytest.param(sc, marks=pytest.mark.slow) for sc in make_scenes(quick=True)
+], ids=lambda s: s.name)
 def test_masked_torch_solver_follows_the_solver_study_scenes(scene):
     """Every scene (a snap-through fold, the Gent limit, big steps, the catalogue's stiffest corner ...), walked
     point by point: the torch answers equal the compiled ones (status, convergence, snaps; states to 1e-9)."""
@@ -84,7 +89,7 @@ def _host(x):
     pytest.param("PneuNetGrasp-Paper-v0", "SameStep", marks=pytest.mark.slow),
 ])
 def test_torch_vector_env_agrees_with_numba_through_autoresets(env_id, mode):
-    n, steps = 32, 75
+    n, steps = 24, 60
     # the paper's ring keeps going when damaged, so that its grasps reach the fold
     kw = {"terminate_on_damage": False} if "Paper" in env_id else {}
     ref = gym.make_vec(env_id, num_envs=n, backend=REFERENCE, info_level="full", autoreset_mode=mode, **kw)

@@ -281,3 +281,22 @@ def test_fork_after_the_parallel_loop_survives():
     res = subprocess.run([sys.executable, "-c", _FORK_AFTER_PARALLEL], capture_output=True, text=True, timeout=300,
                          env=env)
     assert res.returncode == 0, res.stderr[-2000:]
+
+
+def test_threads_are_chosen_by_n_and_can_be_set():
+    from pneunet_env.physics.batched import ENVS_PER_THREAD, check_threads, threads_for
+
+    assert threads_for(1) == 1 and threads_for(ENVS_PER_THREAD) == 1
+    assert threads_for(10**9) >= 1
+    for bad in (0, -1, 2.5, True, "2", 10**6):
+        with pytest.raises(ValueError, match="threads"):
+            check_threads(bad)
+    check_threads(None)
+    check_threads(1)
+    if HAVE_NUMBA:
+        from pneunet_env.physics.batched import solve_batch
+
+        p1 = np.linspace(0.0, 1.2, 2048)
+        one = solve_batch(0.0, 0.0, 0.0, p1, 1e-3, 0.1, backend="numba", threads=1)
+        auto = solve_batch(0.0, 0.0, 0.0, p1, 1e-3, 0.1, backend="numba", parallel=True)
+        assert np.array_equal(one.curvature, auto.curvature) and one.converged.all()
