@@ -27,6 +27,8 @@ from typing import Any, SupportsFloat
 import gymnasium as gym
 import numpy as np
 
+from pneunet_env.physics.xp import NUMPY, ops_for
+
 __all__ = ["PressureSetpoint", "setpoint_to_rate", "setpoint_step_fraction"]
 
 
@@ -39,14 +41,20 @@ def setpoint_to_rate(setpoint, pressure_fraction, step_fraction: float) -> np.nd
         step_fraction: ``max_pressure_step_kpa / max_pressure_kpa`` (:func:`setpoint_step_fraction`).
 
     Returns:
-        ``clip(((u + 1)/2 - p) / step_fraction, -1, 1)``, float32, the shape of ``setpoint``.
+        ``clip(((u + 1)/2 - p) / step_fraction, -1, 1)``, float32, the shape of ``setpoint`` (a tensor on its device
+        for torch tensors).
 
     This is a proportional pressure regulator with a rate limit: a function of the pressure and the command only,
     so a policy using it still observes nothing but the pressure.
     """
-    u = np.clip(np.asarray(setpoint, dtype=np.float64), -1.0, 1.0)
-    p = np.asarray(pressure_fraction, dtype=np.float64).reshape(u.shape)
-    return np.clip((0.5 * (u + 1.0) - p) / step_fraction, -1.0, 1.0).astype(np.float32)
+    xp = ops_for(setpoint)
+    if xp is NUMPY:
+        u, p = np.asarray(setpoint, dtype=np.float64), np.asarray(pressure_fraction, dtype=np.float64)
+    else:  # torch tensors (the torch backend): the same formula, on their device
+        u, p = setpoint.double(), pressure_fraction.double()
+    u = xp.minimum(xp.maximum(u, -1.0), 1.0)
+    p = p.reshape(u.shape)
+    return xp.to_float32(xp.minimum(xp.maximum((0.5 * (u + 1.0) - p) / step_fraction, -1.0), 1.0))
 
 
 def setpoint_step_fraction(config) -> float:

@@ -101,7 +101,8 @@ def _cartpole(n: int, steps: int, seed: int) -> float:
 
 def run_sweep(backends: list[str], devices: list[str], num_envs: list[int], env_steps: int = 400_000,
               min_steps: int = 5, max_steps: int = 200, seed: int = 0, compile: bool = False) -> dict[str, Any]:
-    """Measure every backend (torch: on every device) at every N; see the module docstring.
+    """Measure every backend (torch: on every device, eager and, with ``compile``, compiled) at every N; see the
+    module docstring.
 
     ``env_steps``: about this many env-steps per point (``steps = env_steps // N`` within ``[min_steps,
     max_steps]``).
@@ -110,14 +111,16 @@ def run_sweep(backends: list[str], devices: list[str], num_envs: list[int], env_
 
     if "numba" in backends and not HAVE_NUMBA:
         raise ValueError("backend 'numba' needs numba (pip install pneunet-env[fast])")
-    combos = [(b, d) for b in backends for d in (devices if b == "torch" else [None])]
+    # torch: eager on every device, and compiled too with ``compile``
+    combos = [(b, d, c) for b in backends for d in (devices if b == "torch" else [None])
+              for c in ((False, True) if b == "torch" and compile else (False,))]
     rows, cartpole = [], {}
     t_start = time.perf_counter()
     for n in num_envs:
         steps = int(min(max_steps, max(min_steps, env_steps // n)))
         cartpole[n] = _cartpole(n, steps, seed)
-        for b, d in combos:
-            row = _measure(b, d, n, steps, seed, compile)
+        for b, d, c in combos:
+            row = _measure(b, d, n, steps, seed, c)
             row["cartpole_steps_per_s"] = cartpole[n]
             row["ratio_to_cartpole"] = row["steps_per_s"] / cartpole[n]
             rows.append(row)

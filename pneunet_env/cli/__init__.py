@@ -29,6 +29,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "bench render": ("pneunet_env.bench.render_speed", "rgb_array frames/s (step + render) against CartPole"),
     "evaluate": ("agents.evaluate", "evaluate policies over a stiffness grid (table, JSON, PNGs)"),
     "train": ("agents.train", "train an SB3 agent from a YAML config"),
+    "train-skrl": ("agents.train_skrl", "train skrl's PPO on the torch backend, on its device (extra: skrl)"),
     "search": ("agents.search", "tune the blind best-ramp (or rigid) schedule; --sensitivity runs the threshold study"),
     "map": ("agents.maps", "chart success over object modulus x radius: oracle, best blind ramp, rigid jaw, "
             "with the regime boundary"),
