@@ -24,8 +24,6 @@ import time
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 __all__ = ["TorchVecEnvWrapper", "evaluate_success", "train", "add_arguments", "run"]
 
 

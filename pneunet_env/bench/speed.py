@@ -524,7 +524,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="torch's devices for the backend sweep (default: cpu), e.g. --device cpu cuda")
     parser.add_argument("--num-envs", type=int, nargs="+", default=None,
                         help="the sweep's N (default: 256 4096 16384; 16384 262144 1048576 4194304 on a GPU)")
-    parser.add_argument("--compile", action="store_true", help="torch: also measure it with the solver's round through torch.compile")
+    parser.add_argument("--compile", action="store_true",
+                        help="torch: also measure it with the solver's round through torch.compile")
     add_progress_argument(parser)
     parser.add_argument("--plot-only", action="store_true",
                         help="measure nothing: redraw speed.png and reprint the table from OUT/speed.json")
