@@ -982,6 +982,23 @@ OBJECT_KEYS = (
 """The object's constants (:func:`object_info`): in every reset info, and in every step's with ``"full"``."""
 
 
+FULL_KEYS = (
+    "pressure", "pressure_kpa", "curvature", "curvature_per_m", "side_strain", "top_strain", "contact_force",
+    "contact_force_kpa", "indentation", "indentation_mm", "volume_change", "volume_change_mm3", "in_contact",
+    *OBJECT_KEYS, "grip_ratio", "damage_ratio", "peak_contact_force_kpa", "step", "damaged", "dropped", "snapped",
+    "solver_converged", "solver_failed", "solver_iterations", "solver_substeps", "solver_status", "gradient_norm",
+    "min_eigenvalue", "action_clipped", "in_hold", "overstressed", "crushed", "slipping", "held",
+)
+"""The keys of a full info (:func:`build_info` with ``level="full"``)."""
+
+
+def info_keys(level: str) -> tuple[str, ...]:
+    """Every key an info of ``level`` can hold (the lean level's reset info adds the object's constants)."""
+    if level not in INFO_LEVELS:
+        raise ValueError(f"info_level must be one of {INFO_LEVELS}, got {level!r}")
+    return LEAN_KEYS + OBJECT_KEYS if level == "lean" else FULL_KEYS
+
+
 def build_info(
     state: EnvState,
     params: TaskParams,

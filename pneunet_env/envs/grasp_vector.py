@@ -309,6 +309,9 @@ class PneuNetGraspVectorEnv(VectorEnv):
     * ``fused``: numba only (default there): the whole step as one compiled loop over the envs
       (:func:`pneunet_env.fused.fused_step`: the pressure update, the solve, the rules and the observation), bit for
       bit :func:`pneunet_env.task.step`'s result; ``False``: the array step around the batched solve.
+    * ``info_keys``: the info keys to build each step (``None``: every key of ``info_level``; ``()``: none, the
+      fastest, for training loops that read nothing from the info). ``final_obs`` and ``final_info`` (with
+      ``is_success``) are always given where episodes end.
     * ``num_threads``: numba only: the parallel loop's threads (``None``: chosen by N,
       :func:`pneunet_env.physics.batched.threads_for`: one per 512 envs, at most ``NUMBA_NUM_THREADS``).
 
@@ -344,6 +347,7 @@ class PneuNetGraspVectorEnv(VectorEnv):
         compile: bool = False,
         num_threads: int | None = None,
         fused: bool | None = None,
+        info_keys: Sequence[str] | None = None,
         **overrides: Any,
     ) -> None:
         try:
@@ -388,6 +392,16 @@ class PneuNetGraspVectorEnv(VectorEnv):
                     from None
             if max_episode_steps < 1:
                 raise ValueError(f"max_episode_steps must be a positive integer or None, got {max_episode_steps!r}")
+        if info_keys is not None:
+            if isinstance(info_keys, str) or not all(isinstance(k, str) for k in info_keys):
+                raise ValueError(f"info_keys must be a sequence of key names (or None), got {info_keys!r}")
+            valid = task.info_keys(info_level)
+            unknown = sorted(set(info_keys) - set(valid))
+            if unknown:
+                raise ValueError(f"info_keys {unknown} are not keys of the {info_level!r} info; valid: {list(valid)}")
+            info_keys = frozenset(info_keys)
+        self.info_keys: frozenset[str] | None = info_keys
+        """The info keys built each step (``None``: all of the info level's); ``final_obs``/``final_info`` always."""
         self.num_envs = n
         self.render_mode = render_mode
         self.max_episode_steps = max_episode_steps
@@ -562,7 +576,12 @@ class PneuNetGraspVectorEnv(VectorEnv):
         """The info of ``state`` (after ``res``, or at reset), as Gymnasium's vector info: ``(N,)`` arrays, each
         with a ``_key`` mask (``mask``, or all true). Fresh arrays: the state is never handed out."""
         n = self.num_envs
+        keys = self.info_keys
+        if keys is not None and not keys:
+            return {}
         info = task.build_info(state, self._params.task, res, self.info_level)
+        if keys is not None:
+            info = {k: v for k, v in info.items() if k in keys}
         own = {id(v) for rec in (state.eq, state.thresholds, state.task) for v in rec}
         own.update(id(getattr(state.obj, f.name)) for f in dataclasses.fields(state.obj))
         if res is not None:

@@ -439,3 +439,25 @@ def test_autoreset_mode_is_checked_and_named():
     assert PneuNetGraspVectorEnv.metadata["autoreset_mode"] is AutoresetMode.SAME_STEP  # the class default is kept
     with pytest.raises(ValueError, match="autoreset_mode"):
         PneuNetGraspVectorEnv(2, autoreset_mode=AutoresetMode.DISABLED)
+
+
+def test_info_keys_build_only_what_is_asked():
+    from pneunet_env import task
+
+    full = gym.make_vec("PneuNetGrasp-v0", num_envs=4, info_level="full")
+    full.reset(seed=0)
+    info = full.step(np.zeros((4, 1)))[4]
+    assert {k for k in info if not k.startswith("_")} == set(task.FULL_KEYS)
+    some = gym.make_vec("PneuNetGrasp-v0", num_envs=4, info_keys=("pressure_kpa", "held"))
+    _, info = some.reset(seed=0)
+    assert set(info) == {"pressure_kpa", "_pressure_kpa", "held", "_held"}
+    none = gym.make_vec("PneuNetGrasp-v0", num_envs=4, info_keys=())
+    _, info = none.reset(seed=0)
+    assert info == {}
+    for _ in range(none.unwrapped.config.episode_steps):
+        obs, _, term, trunc, info = none.step(np.ones((4, 1)))
+    assert set(info) == {"final_obs", "_final_obs", "final_info", "_final_info"} and "is_success" in info["final_info"]
+    with pytest.raises(ValueError, match="not keys"):
+        gym.make_vec("PneuNetGrasp-v0", num_envs=2, info_keys=("nope",))
+    with pytest.raises(ValueError, match="sequence"):
+        gym.make_vec("PneuNetGrasp-v0", num_envs=2, info_keys="pressure_kpa")
