@@ -223,6 +223,15 @@ def _zero_like(a):
     return None if a.dtype == object else a.dtype.type(0)
 
 
+def _on_host(record):
+    """A state record (NamedTuples and dataclasses, nested) with every tensor as a numpy array."""
+    if isinstance(record, tuple):
+        return type(record)(*(_on_host(v) for v in record))
+    if dataclasses.is_dataclass(record):
+        return type(record)(*(_on_host(getattr(record, f.name)) for f in dataclasses.fields(record)))
+    return record.cpu().numpy() if is_torch(record) else record
+
+
 def _copy(a):
     return a.clone() if is_torch(a) else a.copy()
 
@@ -692,7 +701,7 @@ class PneuNetGraspVectorEnv(VectorEnv):
 
         if self._state is None:
             raise RuntimeError("call reset() before render()")
-        return render_state(self._state, self._params, i)
+        return render_state(_on_host(self._state), self._params, i)
 
     def render(self) -> tuple[np.ndarray, ...] | None:
         """``rgb_array``: one frame per sub-env (a tuple of ``(H, W, 3)`` uint8 arrays)."""

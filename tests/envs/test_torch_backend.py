@@ -159,3 +159,13 @@ def test_torch_vector_env_seeding_and_arguments():
         a.step(torch.zeros(4, 1, dtype=torch.bool))
     obs, *_ = a.step(np.zeros((4, 1)))  # numpy actions are accepted too
     assert isinstance(obs, torch.Tensor)
+
+
+def test_torch_vector_env_renders_and_reports_objects():
+    env = gym.make_vec("PneuNetGrasp-v0", num_envs=2, backend="torch", render_mode="rgb_array")
+    env.reset(seed=0)
+    env.step(torch.ones(2, 1))
+    frames = env.render()
+    assert len(frames) == 2 and frames[0].shape[2] == 3 and frames[0].dtype == np.uint8
+    assert isinstance(env.unwrapped.objects.stiffness, torch.Tensor)
+    assert isinstance(env.unwrapped.equilibrium(1).curvature, float)
