@@ -155,7 +155,8 @@ def train(num_envs: int = 256, device: str = "cpu", minutes: float = 5.0, eval_o
     agent = PPO(models=models, memory=memory, observation_space=wrapped.observation_space,
                 action_space=wrapped.action_space, device=dev, cfg=cfg)
     trainer = StepTrainer(env=wrapped, agents=agent, cfg={"timesteps": 10**9, "headless": True,
-                                                          "disable_progressbar": True})
+                                                          "disable_progressbar": True,
+                                                          "close_environment_at_exit": False})
 
     def mean_action(obs):
         with torch.no_grad():
@@ -178,6 +179,8 @@ def train(num_envs: int = 256, device: str = "cpu", minutes: float = 5.0, eval_o
         trainer.train()
         train_s += time.perf_counter() - t
         steps += num_envs
+    wrapped.close()
+    eval_env.close()
     return {"library": f"skrl {__import__('skrl').__version__}", "torch": torch.__version__, "device": str(dev),
             "num_envs": num_envs, "compile": compile, "minutes": minutes, "eval_objects": eval_objects,
             "best_ramp_success": target, "curve": curve, "reached_best_ramp": reached,
