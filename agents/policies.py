@@ -447,13 +447,20 @@ def convert_vecnormalize(pickle_path: str | Path, json_path: str | Path) -> Path
 
 
 def _model_meta(path: Path) -> dict[str, Any]:
-    meta = path.with_suffix(".json")
-    if meta.is_file():
+    """The model's metadata: its exported JSON sidecar, else the ``run.json`` of the training run it lies in
+    (``best_model.zip``, ``final_model.zip`` in the run folder, ``checkpoints/model_*.zip`` one level down), whose
+    ``algo`` and ``action`` say how to run it; ``{}`` if neither."""
+    candidates = [path.with_suffix(".json"), path.parent / "run.json", path.parent.parent / "run.json"]
+    for i, meta in enumerate(candidates):
+        if not meta.is_file():
+            continue
         try:
             data = json.loads(meta.read_text())
-        except json.JSONDecodeError:
+        except (json.JSONDecodeError, UnicodeDecodeError):
             return {}
-        return data if isinstance(data, dict) else {}
+        if not isinstance(data, dict):
+            return {}
+        return data if i == 0 else {k: data[k] for k in ("algo", "action") if k in data}
     return {}
 
 

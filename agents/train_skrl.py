@@ -121,8 +121,14 @@ def best_ramp_success(env, seed: int) -> float:
 
 def train(num_envs: int = 256, device: str = "cpu", minutes: float = 5.0, eval_objects: int = 200,
           eval_every_s: float = 30.0, seed: int = 0, compile: bool = False, rollouts: int = 32,
-          log=print) -> dict[str, Any]:
-    """Train skrl's PPO on the torch backend for ``minutes`` of wall-clock; see the module docstring."""
+          action: str = "setpoint", initial_log_std: float = -1.0, log=print) -> dict[str, Any]:
+    """Train skrl's PPO on the torch backend for ``minutes`` of wall-clock; see the module docstring.
+
+    ``action``: ``"setpoint"`` (the regulator, as the SB3 agent) or ``"increment"`` (the env's own action, whose
+    per-step noise adds up to a random walk of the pressure). ``initial_log_std``: the policy's initial exploration.
+    """
+    if action not in ("setpoint", "increment"):
+        raise ValueError(f"action must be 'setpoint' or 'increment', got {action!r}")
     import gymnasium as gym
     import torch
     from skrl.agents.torch.ppo import PPO, PPO_CFG
@@ -140,12 +146,14 @@ def train(num_envs: int = 256, device: str = "cpu", minutes: float = 5.0, eval_o
     eval_seed = 10_000 + seed
     target = best_ramp_success(eval_env, eval_seed)
     log(f"best-ramp on the {eval_objects} evaluation objects: {target:.1%}")
-    wrapped = TorchVecEnvWrapper(env)
+    setpoint = action == "setpoint"
+    wrapped = TorchVecEnvWrapper(env, setpoint=setpoint)
     dev = wrapped.device
     net = [{"name": "net", "input": "OBSERVATIONS", "layers": [64, 64], "activations": "tanh"}]
     models = {
         "policy": gaussian_model(observation_space=wrapped.observation_space, action_space=wrapped.action_space,
-                                 device=dev, clip_actions=True, initial_log_std=-1.0, network=net, output="ACTIONS"),
+                                 device=dev, clip_actions=True, initial_log_std=initial_log_std, network=net,
+                                 output="ACTIONS"),
         "value": deterministic_model(observation_space=wrapped.observation_space, action_space=wrapped.action_space,
                                      device=dev, network=net, output="ONE"),
     }
@@ -167,7 +175,8 @@ def train(num_envs: int = 256, device: str = "cpu", minutes: float = 5.0, eval_o
     train_s, next_eval, steps, reached = 0.0, 0.0, 0, None
     while True:
         if train_s >= next_eval or train_s >= budget:  # evaluation time is not training time
-            success = evaluate_success(eval_env, mean_action, eval_seed)
+            success = (evaluate_success(eval_env, mean_action, eval_seed) if setpoint
+                       else _first_episode_success(eval_env, mean_action, eval_seed))
             curve.append({"wall_s": train_s, "env_steps": steps, "success": success})
             log(f"{train_s:7.1f} s  {steps:>10,} env-steps  success {success:.1%}")
             if reached is None and success >= target:
@@ -182,7 +191,8 @@ def train(num_envs: int = 256, device: str = "cpu", minutes: float = 5.0, eval_o
     wrapped.close()
     eval_env.close()
     return {"library": f"skrl {__import__('skrl').__version__}", "torch": torch.__version__, "device": str(dev),
-            "num_envs": num_envs, "compile": compile, "minutes": minutes, "eval_objects": eval_objects,
+            "num_envs": num_envs, "compile": compile, "action": action, "initial_log_std": initial_log_std,
+            "minutes": minutes, "eval_objects": eval_objects,
             "best_ramp_success": target, "curve": curve, "reached_best_ramp": reached,
             "final_success": curve[-1]["success"]}
 
@@ -195,6 +205,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--eval-every", type=float, default=30.0, help="seconds of training between evaluations")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--compile", action="store_true", help="the env's solver round through torch.compile")
+    parser.add_argument("--action", choices=("setpoint", "increment"), default="setpoint",
+                        help="the agent's action: a pressure setpoint (default) or the env's pressure increment")
+    parser.add_argument("--initial-log-std", type=float, default=-1.0, help="the policy's initial log std")
     parser.add_argument("--out", type=Path, default=Path("runs/skrl"), help="output folder (curve.json)")
 
 
@@ -209,7 +222,8 @@ def run(args: argparse.Namespace) -> int:
     if not args.minutes > 0 or not args.eval_every > 0:
         raise SystemExit(f"--minutes and --eval-every must be > 0, got {args.minutes}, {args.eval_every}")
     res = train(num_envs=args.num_envs, device=args.device, minutes=args.minutes, eval_objects=args.eval_objects,
-                eval_every_s=args.eval_every, seed=args.seed, compile=args.compile)
+                eval_every_s=args.eval_every, seed=args.seed, compile=args.compile, action=args.action,
+                initial_log_std=args.initial_log_std)
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "curve.json").write_text(json.dumps(res, indent=1) + "\n")
     r = res["reached_best_ramp"]

@@ -359,6 +359,11 @@ def test_smoke_train_resume_export(tmp_path):
     assert list(evals["timesteps"]) == [1024, 2048] and evals["successes"].shape == (2, 4)  # is_success logged
     ckpt = latest_checkpoint(run_dir)
     assert ckpt is not None and ckpt.name == "model_2048_steps.zip"
+    # a model inside the run folder runs as it was trained (its action mode from run.json), not as a rate policy
+    from agents.policies import SB3Policy
+
+    assert SB3Policy(run_dir / "best_model.zip").action_mode == "setpoint"
+    assert SB3Policy(ckpt).action_mode == "setpoint"
 
     # resume from the newest checkpoint: continues to the new total, keeps the record
     assert _smoke(run_dir, 3072, vec_env, ["--resume"]) == 0
