@@ -3,8 +3,10 @@
 :class:`PneuNetGraspVectorEnv` is what ``gym.make_vec("PneuNetGrasp-v0", num_envs=N)`` returns. It runs the
 same rules as the single environment (:class:`pneunet_env.envs.grasp.PneuNetGraspEnv`), through the same pure
 functions of :mod:`pneunet_env.task` called on ``(N,)`` arrays instead of scalars (gymnax style: the single
-env is the N = 1 case), with :func:`pneunet_env.physics.batched.solve_batch` in place of the scalar solve. Envs
-whose solve has converged leave the batched Newton iteration (the mask is inside ``solve_batch``).
+env is the N = 1 case), with a batched solve in place of the scalar one. Three back-ends: ``numba`` (the default
+with numba: the whole step as one compiled loop, :func:`pneunet_env.fused.fused_step`), ``numpy`` (the array step
+with :func:`pneunet_env.physics.batched.solve_batch`) and ``torch`` (the same array step on tensors of a device,
+with the masked solver :mod:`pneunet_env.physics.masked`).
 
 It is, step for step, ``gym.make_vec("PneuNetGrasp-v0", num_envs=N, vectorization_mode="sync",
 vector_kwargs={"autoreset_mode": AutoresetMode.SAME_STEP})`` (N single envs) computed as arrays: the same
