@@ -6,9 +6,12 @@ through :class:`TorchVecEnvWrapper`, an implementation of skrl's own environment
 (``skrl.envs.wrappers.torch.base.Wrapper``) that passes the env's tensors straight through: observations, actions,
 rewards and flags never leave the device (skrl's generic Gymnasium wrapper would convert them to numpy and back).
 
-The agent commands a pressure setpoint (the action ``u`` in ``[-1, 1]`` is ``(u + 1)/2`` of ``p_max``; the wrapper
-turns it into the env's increment with :func:`pneunet_env.wrappers.setpoint_to_rate`, the same regulator the SB3
-agent uses), from the pressure alone: as blind as best-ramp.
+By default the agent's action is the env's own pressure increment, with an initial exploration of one full step
+(log std 0): skrl's PPO draws Gaussian noise afresh every step, and on increments that noise adds up to a random walk
+of the pressure, which explores hold pressures. ``action="setpoint"`` gives the SB3 agent's action instead (``(u +
+1)/2`` of ``p_max``, through :func:`pneunet_env.wrappers.setpoint_to_rate`); behind its rate-limited regulator
+per-step noise averages out, and skrl's PPO did not learn with it (docs/performance.md). Either way the agent sees
+the pressure alone: as blind as best-ramp.
 
 Progress is measured the way the baselines are compared: every ``eval_every_s`` seconds the deterministic policy
 (skrl's mean action) grasps a fixed, seeded set of objects (one episode each, on the same backend), beside
@@ -121,7 +124,7 @@ def best_ramp_success(env, seed: int) -> float:
 
 def train(num_envs: int = 256, device: str = "cpu", minutes: float = 5.0, eval_objects: int = 200,
           eval_every_s: float = 30.0, seed: int = 0, compile: bool = False, rollouts: int = 32,
-          action: str = "setpoint", initial_log_std: float = -1.0, log=print) -> dict[str, Any]:
+          action: str = "increment", initial_log_std: float = 0.0, log=print) -> dict[str, Any]:
     """Train skrl's PPO on the torch backend for ``minutes`` of wall-clock; see the module docstring.
 
     ``action``: ``"setpoint"`` (the regulator, as the SB3 agent) or ``"increment"`` (the env's own action, whose
@@ -167,7 +170,9 @@ def train(num_envs: int = 256, device: str = "cpu", minutes: float = 5.0, eval_o
                                                           "close_environment_at_exit": False})
 
     def mean_action(obs):
-        with torch.no_grad():
+        # fork_rng: the evaluation's draws (the model samples even when only its mean is used) leave the training's
+        # random stream as it was, so the training does not depend on when the evaluations happen
+        with torch.no_grad(), torch.random.fork_rng(devices=[dev] if dev.type == "cuda" else []):
             return agent.act(obs, None, timestep=0, timesteps=1)[1]["mean_actions"].reshape(-1)
 
     curve = []
@@ -205,9 +210,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--eval-every", type=float, default=30.0, help="seconds of training between evaluations")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--compile", action="store_true", help="the env's solver round through torch.compile")
-    parser.add_argument("--action", choices=("setpoint", "increment"), default="setpoint",
-                        help="the agent's action: a pressure setpoint (default) or the env's pressure increment")
-    parser.add_argument("--initial-log-std", type=float, default=-1.0, help="the policy's initial log std")
+    parser.add_argument("--action", choices=("setpoint", "increment"), default="increment",
+                        help="the agent's action: the env's pressure increment (default) or a pressure setpoint")
+    parser.add_argument("--initial-log-std", type=float, default=0.0, help="the policy's initial log std")
     parser.add_argument("--out", type=Path, default=Path("runs/skrl"), help="output folder (curve.json)")
 
 
