@@ -194,3 +194,52 @@ def test_seeded_random_walks_converge_long(cfg):
     backend = "numba" if HAVE_NUMBA else "numpy"
     failed, total = _walk(cfg, 16384, 150, 11, backend)
     assert failed == 0, f"{failed} of {total} steps unconverged"
+
+
+_TORCH_DTYPES = ("float32", "float64", "float16", "int64", "int32", "uint8", "bool", "complex64")
+
+
+@QUICK
+@given(shape=st.sampled_from([(4, 1), (4,), (3, 1), (4, 2), (), (1, 4), (0,)]),
+       dtype=st.sampled_from(_TORCH_DTYPES),
+       value=st.one_of(st.floats(allow_nan=True, allow_infinity=True, width=32), st.integers(-5, 5)))
+def test_torch_backend_actions_either_step_or_raise_a_clear_error(shape, dtype, value):
+    """Any tensor handed to the torch backend's step: it steps (finite, real, right shape), or it raises a
+    ValueError/TypeError that names the problem; the env stays usable."""
+    torch = pytest.importorskip("torch")
+    env = _torch_env()
+    dt = getattr(torch, dtype)
+    try:
+        a = torch.full(shape, value).to(dt)
+    except (RuntimeError, OverflowError, TypeError):
+        return
+    try:
+        obs, reward, *_ = env.step(a)
+    except (ValueError, TypeError) as exc:
+        assert any(w in str(exc) for w in ("actions", "shape", "dtype", "finite")), exc
+    else:
+        assert obs.shape == (4, 1) and bool(torch.isfinite(obs).all()) and reward.dtype == torch.float64
+    obs, *_ = env.step(torch.zeros(4, 1))  # still usable
+    assert bool(torch.isfinite(obs).all())
+
+
+_TORCH_ENV: list = []
+
+
+def _torch_env():
+    if not _TORCH_ENV:
+        env = gym.make_vec("PneuNetGrasp-v0", num_envs=4, backend="torch")
+        env.reset(seed=0)
+        _TORCH_ENV.append(env)
+    return _TORCH_ENV[0]
+
+
+@pytest.mark.parametrize("kwargs", [
+    {"backend": "torch", "compile": "yes"}, {"backend": "torch", "device": 3.5}, {"backend": "torch", "device": "tpu"},
+    {"backend": "numpy", "compile": True}, {"backend": "torch", "num_threads": 2}, {"backend": "jax"},
+    {"info_keys": ["pressure_kpa", 3]}, {"num_threads": "two"}, {"fused": 1},
+])
+def test_backend_arguments_are_checked(kwargs):
+    pytest.importorskip("torch")
+    with pytest.raises(ValueError):
+        gym.make_vec("PneuNetGrasp-v0", num_envs=2, **kwargs)
