@@ -150,19 +150,7 @@ def fused_step(state: task.EnvState, action: np.ndarray, params: task.EnvParams,
             th.crush_indentation, th.grip_traction, ts.step, ts.damaged, ts.dropped, ts.peak_force, params.actuator,
             params.solver, consts, p1, k1, s1, top, force, delta, touch, dv, U, gn, lmin, conv, it, sub, snap, status,
             command, failed, clipped, t_step, t_damaged, t_dropped, t_peak, *flags, reward, obs)
-    n_threads = batched.threads_for(n) if threads is None else int(threads)
-    if parallel is None:
-        parallel = n >= batched.PARALLEL_MIN_ENVS and n_threads > 1
-    if parallel:
-        with batched._PARALLEL_LOCK:
-            before = numba.get_num_threads()
-            numba.set_num_threads(n_threads)
-            try:
-                _loop_parallel(*args)
-            finally:
-                numba.set_num_threads(before)
-    else:
-        _loop_serial(*args)
+    batched.run_loop(_loop_serial, _loop_parallel, args, n, parallel, threads)
     solve = Equilibrium(p1, k1, s1, top, force, delta, touch, dv, U, gn, lmin, conv, it, sub, snap, status,
                         obj.stiffness.copy(), obj.curvature.copy())
     new_eq = task._keep_where(failed, eq, solve)

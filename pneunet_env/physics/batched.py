@@ -365,22 +365,28 @@ def solve_batch_numba(k, s, p0, p1, kobj, ko, prm, opts, active, parallel: bool 
     if not HAVE_NUMBA:
         raise RuntimeError("the numba back-end needs numba")
     out = _allocate(k, s)
-    n_threads = threads_for(k.shape[0]) if threads is None else int(threads)
-    if parallel is None:
-        parallel = k.shape[0] >= PARALLEL_MIN_ENVS and n_threads > 1
     args = (k, s, p0, p1, kobj, ko, prm, opts, active, out.kappa, out.side_strain, out.energy, out.gradient_norm,
             out.min_eigenvalue, out.iterations, out.substeps, out.snapped, out.status, out.volume_change)
-    if parallel:
-        with _PARALLEL_LOCK:  # one parallel loop at a time (the workqueue layer aborts on concurrent use)
-            before = numba.get_num_threads()
-            numba.set_num_threads(n_threads)
-            try:
-                _loop_parallel(*args)
-            finally:
-                numba.set_num_threads(before)
-    else:
-        _loop_serial(*args)
+    run_loop(_loop_serial, _loop_parallel, args, k.shape[0], parallel, threads)
     return _result(out, p1, kobj, ko, prm[0])
+
+
+def run_loop(serial, parallel_loop, args: tuple, n: int, parallel: bool | None, threads: int | None) -> None:
+    """Run a compiled loop over ``n`` envs: ``parallel_loop`` on :func:`threads_for` ``(n)`` threads (or ``threads``)
+    when ``parallel`` (``None``: from :data:`PARALLEL_MIN_ENVS` envs and 2 threads on), else ``serial``."""
+    n_threads = threads_for(n) if threads is None else int(threads)
+    if parallel is None:
+        parallel = n >= PARALLEL_MIN_ENVS and n_threads > 1
+    if not parallel:
+        serial(*args)
+        return
+    with _PARALLEL_LOCK:  # one parallel loop at a time (the workqueue layer aborts on concurrent use)
+        before = numba.get_num_threads()
+        numba.set_num_threads(n_threads)
+        try:
+            parallel_loop(*args)
+        finally:
+            numba.set_num_threads(before)
 
 
 # --------------------------------------------------------------------------------------------------

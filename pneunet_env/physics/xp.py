@@ -93,19 +93,18 @@ def torch_ops(device=None) -> Ops:
             a, b = scalar(a, like), scalar(b, like)
         return torch.where(c, a, b)
 
-    def maximum(a, b):
-        if not isinstance(b, torch.Tensor):
-            return torch.clamp(a, min=float(b)) if a.dtype.is_floating_point else torch.clamp(a, min=b)
-        if not isinstance(a, torch.Tensor):
-            return maximum(b, a)
-        return torch.maximum(a, b)
+    def extreme(tensor_fn, bound):
+        # torch.maximum/minimum, with a Python number on either side as a clamp (which keeps the tensor's dtype)
+        def fn(a, b):
+            if not isinstance(a, torch.Tensor):
+                a, b = b, a
+            if isinstance(b, torch.Tensor):
+                return tensor_fn(a, b)
+            return torch.clamp(a, **{bound: float(b) if a.dtype.is_floating_point else b})
 
-    def minimum(a, b):
-        if not isinstance(b, torch.Tensor):
-            return torch.clamp(a, max=float(b)) if a.dtype.is_floating_point else torch.clamp(a, max=b)
-        if not isinstance(a, torch.Tensor):
-            return minimum(b, a)
-        return torch.minimum(a, b)
+        return fn
+
+    maximum, minimum = extreme(torch.maximum, "min"), extreme(torch.minimum, "max")
 
     def full(n, value, kind):
         return torch.full((n,), value, dtype=dtypes[kind], device=dev)
