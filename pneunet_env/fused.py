@@ -25,7 +25,7 @@ from pneunet_env import task
 from pneunet_env.physics import _jit, batched, contact, mechanics
 from pneunet_env.physics import solver as _solver
 from pneunet_env.physics._jit import HAVE_NUMBA
-from pneunet_env.physics.solver import Equilibrium, step_state
+from pneunet_env.physics.solver import Equilibrium, _evaluate, step_state_from
 
 __all__ = ["HAVE_FUSED", "fused_step"]
 
@@ -51,7 +51,7 @@ def _flag_value(flag):
 def _make_loop(stamp: int, variant: int):
     # stamp and variant key numba's on-disk cache (see physics.batched._make_loop).
     def _loop(action, command, k, s, p_eq, kobj, ko, eq_force, eq_delta, eq_touch, eq_dv, failure, crush, grip,
-              step0, damaged0, dropped0, peak0, prm, opts, tp,
+              step0, damaged0, dropped0, peak0, prm, opts, tp, ev_cache, ev_valid,
               o_p, o_k, o_s, o_top, o_force, o_delta, o_touch, o_dv, o_U, o_gn, o_lmin, o_conv, o_it, o_sub, o_snap,
               o_status, o_command, o_failed, o_clipped, o_step, o_damaged, o_dropped, o_peak, o_in_hold, o_over,
               o_crushed, o_dmg_event, o_slipping, o_drop_event, o_held, o_terminated, o_truncated, o_success,
@@ -65,7 +65,12 @@ def _make_loop(stamp: int, variant: int):
             o_clipped[i] = a < -1.0 or a > 1.0
             a = min(max(a, -1.0), 1.0)
             p = min(max(command[i] + a * dp, 0.0), p_max)
-            r = step_state(k[i], s[i], p_eq[i], p, prm, kobj[i], ko[i], opts)
+            c = ev_cache[i]
+            if ev_valid[i]:  # the evaluation at (k, s, p_eq) that the last step ended on
+                ev0 = (c[0] != 0.0, c[1], c[2], c[3], c[4], c[5], c[6], c[7], c[8], c[9])
+            else:
+                ev0 = _evaluate(k[i], s[i], p_eq[i], prm, kobj[i], ko[i])
+            r = step_state_from(k[i], s[i], p_eq[i], p, prm, kobj[i], ko[i], opts, ev0)
             delta, force, touch = _contact(r[0], kobj[i], ko[i])
             status = r[8]
             conv = status >= 0 and status <= 1
@@ -87,6 +92,12 @@ def _make_loop(stamp: int, variant: int):
             o_status[i] = status
             failed = not conv
             o_failed[i] = failed
+            if not failed:  # the new state's evaluation, for the next step (a failed step keeps the state and its own)
+                ev = r[10]
+                c[0] = 1.0 if ev[0] else 0.0
+                c[1], c[2], c[3], c[4], c[5], c[6], c[7], c[8], c[9] = ev[1], ev[2], ev[3], ev[4], ev[5], ev[6], \
+                    ev[7], ev[8], ev[9]
+                ev_valid[i] = True
             if failed:  # the previous state (and command) is kept
                 p, force, delta, touch, dv = command[i], eq_force[i], eq_delta[i], eq_touch[i], eq_dv[i]
             else:
@@ -115,8 +126,17 @@ if HAVE_NUMBA:
     _loop_parallel = numba.njit(_make_loop(_stamp or 0, 1), nogil=True, parallel=True, cache=_cache)
 
 
+EV_FIELDS = 10
+"""Floats per env of the evaluation cache (:func:`new_cache`): the energy kernel's 10-tuple, the flag as 0/1."""
+
+
+def new_cache(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """An empty evaluation cache for ``n`` envs: ``(values (n, 10), valid (n,))``; see :func:`fused_step`."""
+    return np.zeros((n, EV_FIELDS)), np.zeros(n, bool)
+
+
 def fused_step(state: task.EnvState, action: np.ndarray, params: task.EnvParams, parallel: bool | None = None,
-               threads: int | None = None) -> task.Step:
+               threads: int | None = None, cache: tuple[np.ndarray, np.ndarray] | None = None) -> task.Step:
     """:func:`pneunet_env.task.step` for a batch on the numba back-end, as one compiled loop (see the module).
 
     Args:
@@ -124,6 +144,11 @@ def fused_step(state: task.EnvState, action: np.ndarray, params: task.EnvParams,
         action: float64 ``(N,)``, finite (:func:`pneunet_env.task.batch_actions`).
         params: the env's :class:`~pneunet_env.task.EnvParams`.
         parallel, threads: as for :func:`pneunet_env.physics.batched.solve_batch` (threads chosen by N).
+        cache: ``(values, valid)`` from :func:`new_cache`, kept by the caller between steps: the energy evaluation
+            each env's last step ended on, which is exactly the next step's first one (its state, its pressure, its
+            object), so the step starts from it instead of evaluating again (one evaluation in about five). Updated
+            in place; the caller marks envs it resets invalid (``valid[idx] = False``). ``None``: no cache. The
+            results are the same, bit for bit.
     """
     if not HAVE_FUSED:
         raise RuntimeError("the fused step needs numba (pip install pneunet-env[fast])")
@@ -145,11 +170,12 @@ def fused_step(state: task.EnvState, action: np.ndarray, params: task.EnvParams,
               int(tp.squeeze_steps + tp.hold_steps), float(tp.reward_hold), float(tp.reward_success),
               float(tp.penalty_damage), float(tp.penalty_slip), bool(tp.terminate_on_damage),
               bool(tp.terminate_on_slip), 0.0 if vscale is None else float(vscale))
+    ev_cache, ev_valid = new_cache(n) if cache is None else cache
     args = (action, state.command, eq.curvature, eq.side_strain, eq.pressure, obj.stiffness, obj.curvature,
             eq.contact_force, eq.indentation, eq.in_contact, eq.volume_change, th.failure_traction,
             th.crush_indentation, th.grip_traction, ts.step, ts.damaged, ts.dropped, ts.peak_force, params.actuator,
-            params.solver, consts, p1, k1, s1, top, force, delta, touch, dv, U, gn, lmin, conv, it, sub, snap, status,
-            command, failed, clipped, t_step, t_damaged, t_dropped, t_peak, *flags, reward, obs)
+            params.solver, consts, ev_cache, ev_valid, p1, k1, s1, top, force, delta, touch, dv, U, gn, lmin, conv, it,
+            sub, snap, status, command, failed, clipped, t_step, t_damaged, t_dropped, t_peak, *flags, reward, obs)
     batched.run_loop(_loop_serial, _loop_parallel, args, n, parallel, threads)
     solve = Equilibrium(p1, k1, s1, top, force, delta, touch, dv, U, gn, lmin, conv, it, sub, snap, status,
                         obj.stiffness.copy(), obj.curvature.copy())

@@ -60,3 +60,31 @@ def test_fused_is_the_numba_default_and_checked():
         gym.make_vec("PneuNetGrasp-v0", num_envs=2, backend="numpy", fused=True)
     with pytest.raises(ValueError, match="fused"):
         gym.make_vec("PneuNetGrasp-v0", num_envs=2, backend="numba", fused="yes")
+
+
+@pytest.mark.parametrize("mode", ["SameStep", "NextStep"])
+def test_fused_env_with_its_evaluation_cache_equals_the_array_step_env(mode):
+    """The numba env (fused, with the cache of each env's last evaluation) against the array step, through autoresets
+    and a masked reset: every observation, reward, flag and info value equal, bit for bit."""
+    n = 64
+    envs = [gym.make_vec("PneuNetGrasp-v0", num_envs=n, backend="numba", fused=f, autoreset_mode=mode,
+                         info_level="full") for f in (True, False)]
+    outs = [e.reset(seed=2) for e in envs]
+    rng = np.random.default_rng(1)
+    ended = 0
+    for t in range(130):
+        a = rng.uniform(-1.0, 2.0, (n, 1)).astype(np.float32)
+        if t == 60:  # a masked reset in the middle
+            mask = rng.random(n) < 0.3
+            outs = [e.reset(options={"reset_mask": mask}) for e in envs]
+            assert np.array_equal(outs[0][0], outs[1][0])
+        outs = [e.step(a) for e in envs]
+        for x, y in zip(outs[0][:4], outs[1][:4], strict=True):
+            assert np.array_equal(x, y)
+        for key, v in outs[0][4].items():
+            if key in ("final_obs", "final_info"):
+                continue
+            assert np.array_equal(v, outs[1][4][key], equal_nan=v.dtype.kind == "f"), key
+        ended += int(np.sum(outs[0][2] | outs[0][3]))
+    assert ended > n // 2
+    assert envs[0].unwrapped._ev_cache[1].any()  # the cache was in use

@@ -56,7 +56,7 @@ def count_evaluations(w: dict[str, np.ndarray], n: int) -> np.ndarray:
         count[0] += 1
         return terms(*args)
 
-    follow_ev = solver._make_parts(counted, jit=lambda f: f)[3]
+    follow_ev = solver._make_parts(counted, jit=lambda f: f)[2]
     prm, opts = solver.params_tuple(None), solver.DEFAULT_OPTIONS.as_tuple()
     out = np.zeros(n, dtype=np.int64)
     for i in range(n):

@@ -32,7 +32,7 @@ from gymnasium.vector.utils import batch_space
 from pneunet_env import task
 from pneunet_env.config import EnvConfig, load_config
 from pneunet_env.envs.grasp import observation_space
-from pneunet_env.fused import HAVE_FUSED, fused_step
+from pneunet_env.fused import HAVE_FUSED, fused_step, new_cache
 from pneunet_env.objects import GraspObject
 from pneunet_env.physics.batched import BACKENDS, check_threads
 from pneunet_env.physics.solver import Equilibrium
@@ -439,7 +439,10 @@ class PneuNetGraspVectorEnv(VectorEnv):
                              f"backend={backend!r}")
         self.fused = fused
         if fused:
-            self._step_fn = functools.partial(fused_step, params=self._params, parallel=parallel, threads=num_threads)
+            # the energy evaluation each env's last step ended on: the next step's first (fused.fused_step)
+            self._ev_cache = new_cache(n)
+            self._step_fn = functools.partial(fused_step, params=self._params, parallel=parallel, threads=num_threads,
+                                              cache=self._ev_cache)
         else:
             self._step_fn = functools.partial(task.step, params=self._params, contact=self._contact)
         self.single_action_space = spaces.Box(-1.0, 1.0, (1,), np.float32)
@@ -516,11 +519,13 @@ class PneuNetGraspVectorEnv(VectorEnv):
         if mask is None:
             self._pending = self._xp.full(n, False, "bool")
             self._state = task.reset_state(obj, self._params, self._contact)
+            self._forget(None)
             obs, info = self._observe(self._state), self._info(self._state, None, None)
         else:
             mask, idx = self._to_device(mask), self._to_device(idx)
             self._pending = self._pending & ~mask
             self._state = task.autoreset(self._state, idx, obj, self._params, self._contact)
+            self._forget(idx)
             obs = _copy(self._obs)
             obs[idx] = self._observe(self._state)[idx]
             info = self._info(self._state, None, mask)
@@ -537,6 +542,11 @@ class PneuNetGraspVectorEnv(VectorEnv):
         if isinstance(a, GraspObject):
             return GraspObject(*(self._to_device(np.asarray(getattr(a, f.name))) for f in dataclasses.fields(a)))
         return torch.from_numpy(np.ascontiguousarray(a)).to(self.device)
+
+    def _forget(self, idx) -> None:
+        """Invalidate the fused step's evaluation cache for the sub-envs ``idx`` (all if ``None``) after a reset."""
+        if self.fused:
+            self._ev_cache[1][slice(None) if idx is None else idx] = False
 
     def _masked(self, mask, v):
         """``v`` where ``mask``, else its dtype's zero (a numpy array, e.g. of strings, stays on the host)."""
@@ -649,6 +659,7 @@ class PneuNetGraspVectorEnv(VectorEnv):
         else:  # a tensor (N, obs_dim), masked by _final_obs
             final_obs = xp.where(done[:, None], obs, 0.0)
         self._state = task.autoreset(state, idx, self._draw(host_idx, {}), self._params, self._contact)
+        self._forget(idx)
         obs = _copy(obs)
         obs[idx] = self._observe(self._state)[idx]
         self._merge_reset_info(info, done)
@@ -671,6 +682,7 @@ class PneuNetGraspVectorEnv(VectorEnv):
             host_idx = np.flatnonzero(self._host(pending))
             idx = self._to_device(host_idx)
             state = task.autoreset(state, idx, self._draw(host_idx, {}), self._params, self._contact)
+            self._forget(idx)
             obs = _copy(obs)
             obs[idx] = self._observe(state)[idx]
             reward = self._xp.where(pending, 0.0, reward)

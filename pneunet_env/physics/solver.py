@@ -336,12 +336,13 @@ def _make_parts(terms, jit=njit):
         return r[0], r[1], r[2], r[3], r[4], r[5], r[6]
 
     @jit
-    def follow_ev(k, s, p0, p1, prm, kobj, ko, opts):
+    def follow_from(k, s, p0, p1, prm, kobj, ko, opts, ev0):
+        # follow_ev from a start whose evaluation ev0 = evaluate(k, s, p0, ...) is known (a cache of the previous
+        # step's last one); returns follow_ev's tuple and the evaluation at the answer.
         gtol, max_iter, corr_iter, max_step, min_step, max_jump, eig_floor, max_substeps = opts
         # Polish the start so that the tangent is taken at an equilibrium (at an equilibrium: one evaluation).
-        k, s, U, gn, lmin, iters, status, ev = descend(
-            k, s, p0, prm, kobj, ko, gtol, max_iter, eig_floor, evaluate(k, s, p0, prm, kobj, ko), k, s, math.inf
-        )
+        k, s, U, gn, lmin, iters, status, ev = descend(k, s, p0, prm, kobj, ko, gtol, max_iter, eig_floor, ev0, k, s,
+                                                       math.inf)
         substeps = 0
         snapped = False
         p = p0
@@ -400,15 +401,23 @@ def _make_parts(terms, jit=njit):
             p = pt
             k, s, U, gn, lmin, status, ev = r[0], r[1], r[2], r[3], r[4], r[6], r[7]
             h = STEP_AFTER_FOLD * max_step
-        return k, s, U, gn, lmin, iters, substeps, snapped, status, ev[7] if ev[0] else math.nan
+        return k, s, U, gn, lmin, iters, substeps, snapped, status, ev[7] if ev[0] else math.nan, ev
 
-    return evaluate, minimise, follow_ev
+    @jit
+    def follow_ev(k, s, p0, p1, prm, kobj, ko, opts):
+        r = follow_from(k, s, p0, p1, prm, kobj, ko, opts, evaluate(k, s, p0, prm, kobj, ko))
+        return r[0], r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8], r[9]
+
+    return evaluate, minimise, follow_ev, follow_from
 
 
-_evaluate, _minimise, _follow_ev = _make_parts(mechanics.make_terms(
+_evaluate, _minimise, _follow_ev, step_state_from = _make_parts(mechanics.make_terms(
     math.log, math.sin, math.cos, njit(mechanics._swhere), njit(mechanics._smax), abs, jit=njit
 )[1])
 step_state = _follow_ev
+# step_state_from(kappa~, e_s, p0, p1, prm, k~_obj, w kappa_obj, opts, ev0): step_state from a start whose energy
+# evaluation ev0 (the kernel's 10-tuple at (kappa~, e_s, p0)) is known; returns step_state's tuple and the evaluation
+# at the answer, so that a caller can keep it for the next step (pneunet_env.fused caches it: one evaluation less).
 """The fast entry point: ``step_state(kappa~, e_s, p0, p1, prm, k~_obj, w kappa_obj, opts)`` returns
 ``(kappa~, e_s, U, |grad|, lam_min, iterations, substeps, snapped, status, volume_change)``.
 
