@@ -62,7 +62,7 @@ def test_fused_is_the_numba_default_and_checked():
         gym.make_vec("PneuNetGrasp-v0", num_envs=2, backend="numba", fused="yes")
 
 
-@pytest.mark.parametrize("mode", ["SameStep", "NextStep"])
+@pytest.mark.parametrize("mode", ["SameStep", pytest.param("NextStep", marks=pytest.mark.slow)])
 def test_fused_env_with_its_evaluation_cache_equals_the_array_step_env(mode):
     """The numba env (fused, with the cache of each env's last evaluation) against the array step, through autoresets
     and a masked reset: every observation, reward, flag and info value equal, bit for bit."""
