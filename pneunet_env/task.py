@@ -66,7 +66,7 @@ from pneunet_env.physics.solver import (
     status_message,
     step_state,
 )
-from pneunet_env.physics.xp import is_torch, ops_for
+from pneunet_env.physics.xp import is_torch, ops_for, to_host
 
 __all__ = [
     "TaskParams",
@@ -481,10 +481,11 @@ def batch_actions(actions, n: int, device=None):
     """A batch's actions, shape ``(n, 1)`` or ``(n,)``, as a float64 ``(n,)`` array; errors name what they got
     (``TypeError`` for what is not real numbers, ``ValueError`` for the shape or a NaN/inf, with its index).
 
-    With ``device`` (a torch device) the result is a float64 tensor there; a tensor is taken as it is (moved if it
-    is elsewhere), anything else as for numpy.
+    With ``device`` (a torch device: the torch backend) the result is a float64 tensor there, from a tensor (moved
+    if it is elsewhere) or from anything numpy takes; a NaN or inf is then caught once, by the step
+    (:func:`update_pressure`), with its index. Without ``device`` a CPU tensor is taken as numpy takes it.
     """
-    if device is not None or is_torch(actions):
+    if device is not None:
         return _tensor_actions(actions, n, device)
     a = _real_array(actions, "actions", f"of shape ({n}, 1)")
     if a.shape == (n, 1):
@@ -502,18 +503,17 @@ def _tensor_actions(actions, n: int, device):
     import torch
 
     if is_torch(actions):
-        if actions.dtype.is_complex or actions.dtype == torch.bool or not (
-                actions.dtype.is_floating_point or actions.dtype in (torch.int8, torch.int16, torch.int32, torch.int64,
-                                                                     torch.uint8)):
+        if not (actions.dtype.is_floating_point
+                or actions.dtype in (torch.int8, torch.int16, torch.int32, torch.int64, torch.uint8)):
             raise TypeError(f"actions must be real numbers of shape ({n}, 1), got a tensor of dtype {actions.dtype}")
-        a = actions.to(dtype=torch.float64, device=actions.device if device is None else device)
+        a = actions.to(dtype=torch.float64, device=device)
     else:
         a = torch.from_numpy(np.array(_real_array(actions, "actions", f"of shape ({n}, 1)"))).to(device)
     if tuple(a.shape) == (n, 1):
         a = a[:, 0]
     elif tuple(a.shape) != (n,):
         raise ValueError(f"actions must have shape ({n}, 1) (or ({n},)), got shape {tuple(a.shape)}")
-    return check_action(a)
+    return a
 
 
 def update_pressure(pressure, action, params: TaskParams):
@@ -1077,7 +1077,7 @@ def build_info(
         "solver_failed": solver_failed,
         "solver_iterations": solve.iterations,
         "solver_substeps": solve.substeps,
-        "solver_status": status_message(solve.status.cpu().numpy() if is_torch(solve.status) else solve.status),
+        "solver_status": status_message(to_host(solve.status)),
         "gradient_norm": solve.gradient_norm,
         "min_eigenvalue": solve.min_eigenvalue,
         "action_clipped": action_clipped,

@@ -461,3 +461,17 @@ def test_info_keys_build_only_what_is_asked():
         gym.make_vec("PneuNetGrasp-v0", num_envs=2, info_keys=("nope",))
     with pytest.raises(ValueError, match="sequence"):
         gym.make_vec("PneuNetGrasp-v0", num_envs=2, info_keys="pressure_kpa")
+
+
+def test_a_cpu_tensor_action_steps_the_numpy_backends():
+    """A CPU torch tensor is real numbers to the numpy and numba backends, as numpy takes it (not a crash)."""
+    torch = pytest.importorskip("torch")
+    for backend in ["numpy"] + (["numba"] if HAVE_NUMBA else []):
+        env = gym.make_vec("PneuNetGrasp-v0", num_envs=4, backend=backend)
+        env.reset(seed=0)
+        ref = gym.make_vec("PneuNetGrasp-v0", num_envs=4, backend=backend)
+        ref.reset(seed=0)
+        obs, *_ = env.step(torch.full((4, 1), 0.5))
+        assert isinstance(obs, np.ndarray) and np.array_equal(obs, ref.step(np.full((4, 1), 0.5))[0])
+        with pytest.raises(ValueError, match=r"actions\[2\]"):
+            env.step(torch.tensor([[0.1], [0.2], [float("nan")], [0.0]]))
