@@ -15,9 +15,7 @@ order; tested), so the env's info, autoreset and seeding are unchanged.
 
 from __future__ import annotations
 
-import hashlib
 import sys
-from pathlib import Path
 
 import numpy as np
 
@@ -31,16 +29,6 @@ __all__ = ["HAVE_FUSED", "fused_step"]
 
 HAVE_FUSED = HAVE_NUMBA
 """Whether the fused step is available (it needs numba)."""
-
-
-def _source_stamp() -> int | None:
-    h = hashlib.sha256()
-    try:
-        for module in (mechanics, contact, _solver, _jit, task, sys.modules[__name__]):
-            h.update(Path(module.__file__).read_bytes())
-    except (OSError, TypeError):
-        return None
-    return int(h.hexdigest()[:15], 16)
 
 
 def _flag_value(flag):
@@ -120,10 +108,8 @@ if HAVE_NUMBA:
 
     _contact = contact.make_contact(_jit.njit(mechanics._smax), _jit.njit(mechanics._swhere), jit=_jit.njit)[1]
     _rules = task.make_rules(_jit.njit(_flag_value), _jit.njit(mechanics._smax), jit=_jit.njit)
-    _stamp = _source_stamp()
-    _cache = _stamp is not None
-    _loop_serial = numba.njit(_make_loop(_stamp or 0, 0), nogil=True, cache=_cache)
-    _loop_parallel = numba.njit(_make_loop(_stamp or 0, 1), nogil=True, parallel=True, cache=_cache)
+    _loop_serial, _loop_parallel = batched.compile_loops(
+        _make_loop, (mechanics, contact, _solver, _jit, task, sys.modules[__name__]))
 
 
 EV_FIELDS = 10

@@ -19,6 +19,7 @@ autoreset test), so they are what a training loop sees.
 from __future__ import annotations
 
 import json
+import os
 import platform
 import time
 from pathlib import Path
@@ -129,7 +130,7 @@ def run_sweep(backends: list[str], devices: list[str], num_envs: list[int], env_
         ref = numba.get(r["num_envs"])
         r["speedup_over_numba"] = None if ref is None else r["steps_per_s"] / ref["steps_per_s"]
     machine: dict[str, Any] = {"platform": platform.platform(), "python": platform.python_version(),
-                               "cpus": __import__("os").cpu_count()}
+                               "cpus": os.cpu_count()}
     if "torch" in backends:
         import torch
 

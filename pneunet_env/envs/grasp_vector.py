@@ -36,7 +36,8 @@ from pneunet_env.fused import HAVE_FUSED, fused_step, new_cache
 from pneunet_env.objects import GraspObject
 from pneunet_env.physics.batched import BACKENDS, check_threads
 from pneunet_env.physics.solver import Equilibrium
-from pneunet_env.physics.xp import NUMPY, is_torch, torch_ops
+from pneunet_env.physics.xp import NUMPY, is_torch, to_host, torch_ops
+from pneunet_env.physics.xp import copy as _copy
 
 __all__ = ["PneuNetGraspVectorEnv", "PCG64Streams"]
 
@@ -221,7 +222,9 @@ def _autoreset_mode(mode) -> AutoresetMode:
 def _zero_like(a):
     """The zero of ``a``'s dtype (``False`` for flags) that fills the entries a mask leaves out."""
     if is_torch(a):
-        return False if a.dtype.__str__() == "torch.bool" else (0.0 if a.dtype.is_floating_point else 0)
+        import torch
+
+        return torch.zeros((), dtype=a.dtype).item()  # on the host: no device sync
     return None if a.dtype == object else a.dtype.type(0)
 
 
@@ -231,11 +234,7 @@ def _on_host(record):
         return type(record)(*(_on_host(v) for v in record))
     if dataclasses.is_dataclass(record):
         return type(record)(*(_on_host(getattr(record, f.name)) for f in dataclasses.fields(record)))
-    return record.cpu().numpy() if is_torch(record) else record
-
-
-def _copy(a):
-    return a.clone() if is_torch(a) else a.copy()
+    return to_host(record)
 
 
 class PneuNetGraspVectorEnv(VectorEnv):
@@ -504,7 +503,7 @@ class PneuNetGraspVectorEnv(VectorEnv):
         pins = dict(options or {})
         mask = pins.pop("reset_mask", None)
         if mask is not None:
-            mask = mask.cpu().numpy() if is_torch(mask) else np.asarray(mask)
+            mask = np.asarray(to_host(mask))
             if mask.dtype != bool or mask.shape != (n,):
                 raise ValueError(f"options['reset_mask'] must be a bool array of shape ({n},), got "
                                  f"{mask.dtype} {mask.shape}")
@@ -552,15 +551,12 @@ class PneuNetGraspVectorEnv(VectorEnv):
         """``v`` where ``mask``, else its dtype's zero (a numpy array, e.g. of strings, stays on the host)."""
         if is_torch(v):
             return self._xp.where(mask, v, _zero_like(v))
-        return np.where(self._host(mask), v, _zero_like(v))
-
-    def _host(self, a) -> np.ndarray:
-        return a.cpu().numpy() if is_torch(a) else a
+        return np.where(to_host(mask), v, _zero_like(v))
 
     def _draw(self, idx: np.ndarray, pins: dict[str, Any]) -> GraspObject:
         """Objects for sub-envs ``idx``, from each one's own stream (the vector env's only source of randomness)."""
         u = self._streams.random(idx, task.draw_count(self.config))
-        pins = {k: (self._host(v) if is_torch(v) else v) for k, v in pins.items()}
+        pins = {k: to_host(v) for k, v in pins.items()}
         obj = task.object_from_uniforms(u, self.config, pinned=pins, batch=True)
         self._warned = task.warn_if_beyond_convergence(obj, self._warned)
         return self._to_device(obj)
@@ -648,7 +644,7 @@ class PneuNetGraspVectorEnv(VectorEnv):
 
         # SAME_STEP autoreset: the ended step's observation and info go to final_obs / final_info.
         xp = self._xp
-        host_idx = np.flatnonzero(self._host(done))
+        host_idx = np.flatnonzero(to_host(done))
         idx = self._to_device(host_idx)
         final_info = {k: self._masked(done, v) for k, v in info.items() if k[0] != "_"}
         final_info["is_success"] = done & res.outcome.success
@@ -662,7 +658,7 @@ class PneuNetGraspVectorEnv(VectorEnv):
         self._forget(idx)
         obs = _copy(obs)
         obs[idx] = self._observe(self._state)[idx]
-        self._merge_reset_info(info, done)
+        self._merge_reset_info(info, done, host_idx, idx)
         info["final_obs"], info["_final_obs"] = final_obs, _copy(done)
         info["final_info"], info["_final_info"] = final_info, _copy(done)
         self._obs = _copy(obs)
@@ -679,7 +675,7 @@ class PneuNetGraspVectorEnv(VectorEnv):
             info["is_success"] = done & res.outcome.success
             info["_is_success"] = _copy(done)
         if pending.any():
-            host_idx = np.flatnonzero(self._host(pending))
+            host_idx = np.flatnonzero(to_host(pending))
             idx = self._to_device(host_idx)
             state = task.autoreset(state, idx, self._draw(host_idx, {}), self._params, self._contact)
             self._forget(idx)
@@ -688,16 +684,15 @@ class PneuNetGraspVectorEnv(VectorEnv):
             reward = self._xp.where(pending, 0.0, reward)
             terminated, truncated = terminated & ~pending, truncated & ~pending
             self._state = state
-            self._merge_reset_info(info, pending)
+            self._merge_reset_info(info, pending, host_idx, idx)
         self._state = state
         self._pending = done
         self._obs = _copy(obs)
         return obs, reward, terminated, truncated, info
 
-    def _merge_reset_info(self, info: dict[str, Any], reset: np.ndarray) -> None:
-        """Put the reset info of the sub-envs ``reset`` (already reset in ``self._state``) into ``info``."""
-        host_idx = np.flatnonzero(self._host(reset))
-        idx = self._to_device(host_idx)
+    def _merge_reset_info(self, info: dict[str, Any], reset, host_idx: np.ndarray, idx) -> None:
+        """Put the reset info of the sub-envs ``reset`` (already reset in ``self._state``; their indices ``host_idx``
+        on the host, ``idx`` on the backend's device) into ``info``."""
         for k, v in self._info(self._state, None, reset).items():
             if k[0] == "_":
                 continue

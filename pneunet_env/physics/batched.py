@@ -47,10 +47,10 @@ from pneunet_env.physics.solver import (
     params_tuple,
     step_state,
 )
-from pneunet_env.physics.xp import NUMPY, Ops, is_torch, torch_ops
+from pneunet_env.physics.xp import NUMPY, Ops, copy, is_torch, to_host, torch_ops
 
-__all__ = ["BACKENDS", "PARALLEL_MIN_ENVS", "ENVS_PER_THREAD", "threads_for", "check_threads", "solve_batch",
-           "solve_batch_numba", "solve_batch_numpy", "solve_batch_torch"]
+__all__ = ["BACKENDS", "PARALLEL_MIN_ENVS", "ENVS_PER_THREAD", "threads_for", "check_threads", "compile_loops",
+           "run_loop", "solve_batch", "solve_batch_numba", "solve_batch_numpy", "solve_batch_torch"]
 
 BACKENDS = ("auto", "numba", "numpy", "torch")
 
@@ -132,7 +132,9 @@ def _prepare(kappa, side_strain, p0, p1, object_stiffness, object_curvature, act
 
 
 def _check_domain(result: Equilibrium, kappa: np.ndarray, side_strain: np.ndarray) -> None:
-    bad = result.status == STATUS_OUTSIDE
+    """``ValueError`` naming the first start state outside the domain (``kappa``, ``side_strain``: the host inputs;
+    ``result``'s arrays may be tensors)."""
+    bad = to_host(result.status == STATUS_OUTSIDE)
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
         raise ValueError(
@@ -225,17 +227,11 @@ def _solve_batch_torch_api(kappa, side_strain, p0, p1, object_stiffness, object_
         dev = torch.device(device)
     except (RuntimeError, TypeError) as exc:
         raise ValueError(f"device must name a torch device, got {device!r} ({exc})") from None
-    host = [v.detach().cpu().numpy() if is_torch(v) else v for v in inputs]
-    act = active.detach().cpu().numpy() if is_torch(active) else active
-    cols, act = _prepare(*host, act, validate)
-    k, s, a0, a1, kobj, ko = (torch.tensor(np.array(c), dtype=torch.float64, device=dev) for c in cols)
+    cols, act = _prepare(*(to_host(v) for v in inputs), to_host(active), validate)
+    k, s, a0, a1, kobj, ko = (torch.tensor(c, dtype=torch.float64, device=dev) for c in cols)
     result = solve_batch_torch(k, s, a0, a1, kobj, ko, params_tuple(params), options.as_tuple(),
                                torch.as_tensor(act, device=dev))
-    bad = (result.status == STATUS_OUTSIDE).cpu().numpy()
-    if bad.any():
-        i = int(np.flatnonzero(bad)[0])
-        raise ValueError(f"start state {i} (kappa[{i}]={float(cols[0][i])!r}, side_strain[{i}]="
-                         f"{float(cols[1][i])!r}) is outside the domain")
+    _check_domain(result, cols[0], cols[1])
     return result
 
 
@@ -246,15 +242,11 @@ def _result(raw: _Raw, p1, kobj, ko, chamber_height: float, ops: Ops = NUMPY) ->
         delta, force, touching = masked.kernels(ops)[3](raw.kappa, kobj, ko)
     status = raw.status
     return Equilibrium(
-        _copy(p1), raw.kappa, raw.side_strain, chamber_height * (1.0 + raw.side_strain) * raw.kappa, force, delta,
+        copy(p1), raw.kappa, raw.side_strain, chamber_height * (1.0 + raw.side_strain) * raw.kappa, force, delta,
         touching, raw.volume_change, raw.energy, raw.gradient_norm, raw.min_eigenvalue,
         (status >= STATUS_CONVERGED) & (status <= STATUS_ROUNDOFF), raw.iterations, raw.substeps, raw.snapped,
-        status, _copy(kobj), _copy(ko),
+        status, copy(kobj), copy(ko),
     )
-
-
-def _copy(a):
-    return a.clone() if is_torch(a) else a.copy()
 
 
 def _allocate(k, s) -> _Raw:
@@ -289,19 +281,33 @@ parallel loop, 546 k with one thread)."""
 
 def threads_for(n: int) -> int:
     """numba threads for ``n`` envs: ``n // ENVS_PER_THREAD``, at least 1, at most numba's ``NUMBA_NUM_THREADS``."""
-    top = numba.config.NUMBA_NUM_THREADS if HAVE_NUMBA else 1
-    return int(max(1, min(top, n // ENVS_PER_THREAD)))
+    return int(max(1, min(_max_threads(), n // ENVS_PER_THREAD)))
 
-def _source_stamp() -> int | None:
-    """A hash of the sources the compiled loop is built from (numba's cache only watches this file); None if
+
+def _max_threads() -> int:
+    return numba.config.NUMBA_NUM_THREADS if HAVE_NUMBA else 1
+
+def _source_stamp(modules) -> int | None:
+    """A hash of the sources a compiled loop is built from (numba's cache only watches the loop's own file); None if
     they cannot be read (then the loop is not cached)."""
     h = hashlib.sha256()
     try:
-        for module in (mechanics, contact, _solver, _jit, sys.modules[__name__]):
+        for module in modules:
             h.update(Path(module.__file__).read_bytes())
     except (OSError, TypeError):
         return None
     return int(h.hexdigest()[:15], 16)
+
+
+def compile_loops(make_loop, modules) -> tuple:
+    """The serial and the parallel loop of ``make_loop(stamp, variant)`` compiled by numba (for :func:`run_loop`),
+    cached on disk under a hash of the sources of ``modules``: compiling a parallel loop takes seconds, and an edit
+    of any of those sources recompiles it instead of loading a stale one. (The scalar solver's closures themselves
+    are not cacheable: numba keys them by their pickled closure, which differs in every process.)"""
+    stamp = _source_stamp(modules)
+    cache = stamp is not None
+    return (numba.njit(make_loop(stamp or 0, 0), nogil=True, cache=cache),
+            numba.njit(make_loop(stamp or 0, 1), nogil=True, parallel=True, cache=cache))
 
 
 def _make_loop(stamp: int, variant: int):
@@ -337,19 +343,14 @@ if HAVE_NUMBA:
         # else the built-in workqueue, which is not thread-safe: _PARALLEL_LOCK serialises the parallel calls.
         numba.config.THREADING_LAYER = "forksafe"
 
-    _stamp = _source_stamp()
-    # Cached on disk (compiling the parallel loop takes seconds); the scalar solver's closures are not
-    # cacheable (numba keys them by their pickled closure, which differs in every process).
-    _cache = _stamp is not None
-    _loop_serial = numba.njit(_make_loop(_stamp or 0, 0), nogil=True, cache=_cache)
-    _loop_parallel = numba.njit(_make_loop(_stamp or 0, 1), nogil=True, parallel=True, cache=_cache)
+    _loop_serial, _loop_parallel = compile_loops(_make_loop, (mechanics, contact, _solver, _jit, sys.modules[__name__]))
 
 
 def check_threads(threads) -> None:
     """``ValueError`` naming ``threads`` unless it is ``None`` or an int in ``[1, NUMBA_NUM_THREADS]``."""
     if threads is None:
         return
-    top = numba.config.NUMBA_NUM_THREADS if HAVE_NUMBA else 1
+    top = _max_threads()
     if isinstance(threads, bool) or not isinstance(threads, (int, np.integer)) or not 1 <= threads <= top:
         raise ValueError(f"threads must be None or an integer in [1, {top}] (NUMBA_NUM_THREADS), got {threads!r}")
 

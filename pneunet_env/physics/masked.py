@@ -52,7 +52,7 @@ from pneunet_env.physics.solver import (
     STEP_AFTER_FOLD,
     make_sym2,
 )
-from pneunet_env.physics.xp import Ops
+from pneunet_env.physics.xp import Ops, copy
 
 __all__ = ["solve_masked", "kernels", "OUTPUTS"]
 
@@ -76,7 +76,6 @@ _FLOAT = ("k", "s", "U", "g0", "g1", "gn", "lmin", "lmax", "hkk", "hks", "hss", 
           "p", "pt", "h", "sign", "xk", "xs", "xp")
 _INT = ("pos", "mode", "it", "maxit", "dstatus", "bstatus", "iters", "substeps", "attempts")
 _BOOL = ("ok", "bok", "snapped")
-_CONST = ("p1", "kobj", "ko")
 
 OUTPUTS = ("kappa", "side_strain", "energy", "gradient_norm", "min_eigenvalue", "iterations", "substeps",
            "snapped", "status", "volume_change")
@@ -343,10 +342,7 @@ def solve_masked(k, s, p0, p1, kobj, ko, prm, opts, active, ops: Ops, *, compact
     m["sign"] = W(p1 >= p0, 1.0, -1.0)
     m["pos"] = W(active, _E_START, _DONE)
 
-    out = {name: None for name in OUTPUTS}
-    full = _outputs(m, ops)  # placeholders of the right types, overwritten below
-    for name in OUTPUTS:
-        out[name] = full[name]
+    out = _outputs(m, ops)  # the batch's outputs, written by _store as envs leave the rounds
     orig = None  # indices of the machine's envs in the batch, once compacted
     size = n
     rounds = 0
@@ -389,6 +385,6 @@ def _store(out, res, sel, orig, ops: Ops) -> None:
             out[name] = v if sel is None else ops.where(sel, v, out[name])
         else:
             idx = orig if sel is None else orig[sel]
-            dst = out[name].clone() if ops.name == "torch" else out[name].copy()
+            dst = copy(out[name])
             dst[idx] = v if sel is None else v[sel]
             out[name] = dst

@@ -21,7 +21,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-__all__ = ["Ops", "NUMPY", "ops_for", "torch_ops", "is_torch"]
+__all__ = ["Ops", "NUMPY", "ops_for", "torch_ops", "is_torch", "copy", "to_host"]
 
 
 class Ops(NamedTuple):
@@ -119,6 +119,16 @@ def torch_ops(device=None) -> Ops:
     )
     _TORCH_OPS[key] = ops
     return ops
+
+
+def copy(a):
+    """A fresh copy of a numpy array or a tensor (on its device)."""
+    return a.clone() if is_torch(a) else a.copy()
+
+
+def to_host(a):
+    """A tensor as a numpy array (copied from its device); anything else as it is."""
+    return a.detach().cpu().numpy() if is_torch(a) else a
 
 
 def ops_for(x) -> Ops:
