@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import time
 from pathlib import Path
 from typing import Any
@@ -217,15 +218,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    try:
-        import skrl  # noqa: F401
-    except ImportError:
-        raise SystemExit("train-skrl needs skrl: pip install 'pneunet-env[skrl]' (after torch==2.13.0)") from None
     for name in ("num_envs", "eval_objects"):
         if getattr(args, name) < 1:
             raise SystemExit(f"--{name.replace('_', '-')} must be a positive integer, got {getattr(args, name)}")
     if not args.minutes > 0 or not args.eval_every > 0:
         raise SystemExit(f"--minutes and --eval-every must be > 0, got {args.minutes}, {args.eval_every}")
+    if not math.isfinite(args.initial_log_std):
+        raise SystemExit(f"--initial-log-std must be finite, got {args.initial_log_std}")
+    try:
+        import skrl  # noqa: F401
+    except ImportError:
+        raise SystemExit("train-skrl needs skrl: pip install 'pneunet-env[skrl]' (after torch==2.13.0)") from None
     res = train(num_envs=args.num_envs, device=args.device, minutes=args.minutes, eval_objects=args.eval_objects,
                 eval_every_s=args.eval_every, seed=args.seed, compile=args.compile, action=args.action,
                 initial_log_std=args.initial_log_std)

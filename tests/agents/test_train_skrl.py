@@ -50,3 +50,14 @@ def test_train_skrl_command_runs_and_writes_the_curve(tmp_path):
     res = json.loads((tmp_path / "curve.json").read_text())
     assert res["curve"][0]["env_steps"] == 0 and res["curve"][-1]["env_steps"] > 0
     assert 0.0 <= res["best_ramp_success"] <= 1.0 and "skrl" in res["library"]
+
+
+@pytest.mark.parametrize("args,match", [
+    (["--num-envs", "0"], "num-envs"), (["--eval-objects", "-1"], "eval-objects"), (["--minutes", "nan"], "minutes"),
+    (["--eval-every", "0"], "eval-every"), (["--initial-log-std", "inf"], "initial-log-std"),
+])
+def test_train_skrl_names_a_bad_argument_before_anything_runs(args, match, tmp_path):
+    from pneunet_env.cli import main
+
+    with pytest.raises(SystemExit, match=match):
+        main(["train-skrl", *args, "--out", str(tmp_path)])
