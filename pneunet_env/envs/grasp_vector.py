@@ -487,10 +487,10 @@ class PneuNetGraspVectorEnv(VectorEnv):
 
     def state_nbytes(self) -> int:
         """Bytes of state kept between steps, all envs (the :class:`~pneunet_env.task.EnvState`'s arrays, the last
-        observation and the random streams)."""
+        observation, the random streams and, for the fused step, its evaluation cache)."""
         s = self._state
         obj = [getattr(s.obj, f.name) for f in dataclasses.fields(s.obj)]
-        arrays = [s.command, *s.eq, *obj, *s.thresholds, *s.task, self._obs]
+        arrays = [s.command, *s.eq, *obj, *s.thresholds, *s.task, self._obs, *(self._ev_cache if self.fused else ())]
         size = sum(a.element_size() * a.nelement() if is_torch(a) else np.asarray(a).nbytes for a in arrays)
         return int(size) + self._streams.nbytes
 
