@@ -42,7 +42,8 @@ from pneunet_env.cli.progress import progress as progress_bar
 from pneunet_env.config import EnvConfig, load_config
 
 __all__ = ["run_episode", "stiffness_grid", "evaluate_policies", "evaluate_distribution", "decade_table",
-           "regime_summary", "plot_success", "plot_schedules", "parse_overrides", "SOFT_MAX", "STIFF_MIN",
+           "regime_summary", "use_case_regimes",
+           "plot_success", "plot_schedules", "parse_overrides", "SOFT_MAX", "STIFF_MIN",
            "add_arguments", "run"]
 
 SOFT_MAX = 1e-4
@@ -240,6 +241,30 @@ def regime_summary(rows) -> dict[str, dict[str, dict[str, float]]]:
             "all": _rates(rs),
         }
     return out
+
+
+def use_case_regimes(use_case: str, draws: int = 4000, seed: int = 0) -> dict[str, Any]:
+    """What a catalogue use case draws, read off the mechanics (docs/env.md's table of use cases).
+
+    ``draws`` objects from :func:`pneunet_env.task.sample_object` (``default_rng(seed)``), each classed by
+    :func:`pneunet_env.physics.regimes.regime` at the config's maximum pressure. Returns the shares
+    ``{"force", "position", "unreachable"}``, the largest ``k~`` drawn, and ``modulus_span_decades``:
+    ``log10`` of the largest over the smallest Young's modulus of the classes with weight (their catalogue
+    ranges, not the draws).
+    """
+    from pneunet_env.catalogue import load_catalogue, use_case_weights
+    from pneunet_env.physics.regimes import regime
+    from pneunet_env.task import sample_object
+
+    cfg = load_config(use_case=use_case)
+    obj = sample_object(np.random.default_rng(seed), cfg, size=draws)
+    reg = regime(obj.stiffness, obj.curvature, cfg.pressure_max, cfg.actuator_params, cfg.solver)
+    catalogue = load_catalogue()
+    moduli = [catalogue[name].youngs_modulus_kpa for name, w in use_case_weights(use_case).items() if w > 0]
+    return {"use_case": use_case, "draws": draws, "seed": seed,
+            "force": float(np.mean(reg == 0)), "position": float(np.mean(reg == 1)),
+            "unreachable": float(np.mean(reg == 2)), "max_stiffness": float(np.max(obj.stiffness)),
+            "modulus_span_decades": math.log10(max(e[1] for e in moduli) / min(e[0] for e in moduli))}
 
 
 def decade_table(rows) -> str:

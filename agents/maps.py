@@ -8,8 +8,8 @@ ramp tuned on the default task) and the **rigid jaw** (``rigid``: a blind positi
 ``RigidGrasp-v0``, tuned on the default task). Each cell of the map is one object, pinned through
 ``reset(seed=s, options={...})``:
 
-* Young's modulus ``E`` log-spaced over ``--e-range`` (default 0.1 kPa to 3 MPa: the feasible window's soft edge
-  lies at 0.3 to 1 kPa at 1000 kg/m^3), shear modulus ``E/3``;
+* Young's modulus ``E`` log-spaced over ``--e-range`` (default 0.1 kPa to 5 MPa: up to the catalogue's stiffest
+  apple, and down past the feasible window's soft edge, at 0.3 to 1 kPa at 1000 kg/m^3), shear modulus ``E/3``;
 * outer radius ``R`` over ``--r-range`` (default 15 to 40 mm), curvature ``1000/R`` per m;
 * compliant depth ``H = R/4`` (so ``H kappa_obj = 1/4`` everywhere and ``k~`` scales as ``E/R``);
 * density ``--density`` (default 1000 kg/m^3), failure strain ``--failure-strain`` (default 0.3) and, objects
@@ -59,7 +59,7 @@ ROLES = ("oracle", "best-ramp", "rigid")
 THICKNESS_RATIO = 0.25
 """``H = R/4``: the compliant depth as a fraction of the radius."""
 
-E_RANGE_KPA = (0.1, 3000.0)
+E_RANGE_KPA = (0.1, 5000.0)
 R_RANGE_MM = (15.0, 40.0)
 PHI_FINE = (64, 40)
 """The regime boundary is contoured on a finer grid than the episodes (E points, R points)."""
@@ -512,7 +512,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--grid", type=int, nargs=2, default=[19, 11], metavar=("NE", "NR"),
                         help="cells: NE log-spaced moduli x NR radii (default 19 11: 4 per decade, 2.5 mm)")
     parser.add_argument("--e-range", type=float, nargs=2, default=list(E_RANGE_KPA), metavar=("LO", "HI"),
-                        help="Young's modulus range, kPa (default 0.1 3000)")
+                        help="Young's modulus range, kPa (default 0.1 5000)")
     parser.add_argument("--r-range", type=float, nargs=2, default=list(R_RANGE_MM), metavar=("LO", "HI"),
                         help="radius range, mm (default 15 40); H = R/4")
     parser.add_argument("--episodes", type=int, default=1, help="episodes per policy and cell (default 1)")

@@ -87,7 +87,8 @@ class PolicyEntry:
         env_id: the environment it drives (``PneuNetGrasp-v0`` or ``RigidGrasp-v0``).
         blind: whether it acts on the observation alone (the oracle does not).
         command: what the observation and action move: ``"pressure"`` or ``"jaw"``.
-        env_kwargs: extra keyword arguments for ``gym.make`` (the rigid gripper's travel).
+        env_kwargs: extra keyword arguments for ``gym.make`` (the rigid gripper's travel; a trained model's
+            ``observe_volume``).
     """
 
     name: str
@@ -244,7 +245,10 @@ def make_policy(spec: str, config: EnvConfig | None = None) -> PolicyEntry:
         action = params.pop("action", None)
         _check_empty(spec, params, "vecnormalize, action")
         pol = SB3Policy(path, vecnormalize=stats, action=action, config=config)
-        return PolicyEntry(spec, f"{pol.algo}, pressure only ({path.name})", pol)
+        seen = "pressure and chamber volume" if pol.observe_volume else "pressure only"
+        # the env it was trained on: a model that observes the volume runs with observe_volume=True, and vice versa
+        return PolicyEntry(spec, f"{pol.algo}, {seen} ({path.name})", pol,
+                           env_kwargs={"observe_volume": pol.observe_volume})
     name, params = parse_spec(spec)
     if name not in REGISTRY:
         raise ValueError(f"unknown policy {name!r}; valid: {', '.join(REGISTRY)} or a path to an SB3 model .zip")
@@ -511,6 +515,12 @@ class SB3Policy:
         config = EnvConfig() if config is None else config
         self.step_fraction = config.task.max_pressure_step_kpa / config.task.max_pressure_kpa
         self.model = getattr(sb3, self.algo).load(self.path, device="cpu")
+        shape = tuple(getattr(self.model.observation_space, "shape", None) or ())
+        if shape not in ((1,), (2,)):
+            raise ValueError(f"model {str(path)!r}: observes shape {shape}; PneuNetGrasp-v0 gives (1,) (the pressure) "
+                             "or (2,) (with observe_volume: the pressure and the chamber's volume change)")
+        self.observe_volume = shape == (2,)
+        """Whether the model observes the chamber's volume change: its env needs ``observe_volume=True``."""
         self.deterministic = deterministic
         self._norm = None
         if vecnormalize is False:

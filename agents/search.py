@@ -60,15 +60,20 @@ class Candidate:
     mean_return: float
     success: np.ndarray  # per object (bool)
     stiffness: np.ndarray  # per object (k~)
+    curvature: np.ndarray  # per object (w kappa_obj)
 
-    def summary(self) -> dict[str, Any]:
-        soft = self.stiffness < 1e-4
-        stiff = self.stiffness >= 1e-3
+    def summary(self, config: EnvConfig) -> dict[str, Any]:
+        """The scores, and success by the object's regime read off the mechanics at ``config``'s maximum pressure
+        (:func:`pneunet_env.physics.regimes.regime`: force-controlled, position-controlled; the paper ring's
+        ``k~`` thresholds would class every hand-scale object as stiff)."""
+        from pneunet_env.physics.regimes import FORCE, POSITION, regime
+
+        reg = regime(self.stiffness, self.curvature, config.pressure_max, config.actuator_params, config.solver)
         rate = lambda m: float(self.success[m].mean()) if m.any() else math.nan  # noqa: E731
         return {"target": self.target, "n_steps": self.n_steps, "success_rate": self.success_rate,
                 "damage_rate": self.damage_rate, "slip_rate": self.slip_rate, "mean_return": self.mean_return,
-                "success_rate_soft": rate(soft), "success_rate_stiff": rate(stiff),
-                "objects_soft": int(soft.sum()), "objects_stiff": int(stiff.sum())}
+                "success_rate_force": rate(reg == FORCE), "success_rate_position": rate(reg == POSITION),
+                "objects_force": int((reg == FORCE).sum()), "objects_position": int((reg == POSITION).sum())}
 
 
 def object_seeds(n: int, seed: int = 0) -> list[int]:
@@ -86,6 +91,7 @@ def score(env, policy, seeds: Sequence[int]) -> dict[str, Any]:
         "mean_return": float(np.mean([r["return"] for r in res])),
         "success": np.array([r["success"] for r in res]),
         "stiffness": np.array([r["stiffness"] for r in res]),
+        "curvature": np.array([r["curvature"] for r in res]),
     }
 
 
@@ -100,7 +106,7 @@ def grid_search(env, config: EnvConfig, seeds: Sequence[int], targets: Sequence[
             if key not in cache:
                 s = score(env, LinearRamp(key[0], key[1], config), seeds)
                 cache[key] = Candidate(key[0], key[1], s["success_rate"], s["damage_rate"], s["slip_rate"],
-                                       s["mean_return"], s["success"], s["stiffness"])
+                                       s["mean_return"], s["success"], s["stiffness"], s["curvature"])
             out.append(cache[key])
             if bar is not None:
                 bar.update()
@@ -178,7 +184,7 @@ def save_best(best: Candidate, path: Path, config: EnvConfig, gripper: str, n_ob
                 "objective": "success rate over the env's object distribution; ties: mean return, then the "
                              "middle of the plateau",
                 "config_overrides": overrides, "elapsed_s": round(elapsed, 2)},
-        score=best.summary(),
+        score=best.summary(config),
         created_by=f"python -m agents.search --gripper {gripper} --objects {n_objects} --seed {seed}",
     )
     return save_ramp(LinearRamp(best.target, best.n_steps, config), path, **meta)
@@ -422,11 +428,12 @@ def run(args: argparse.Namespace) -> int:
     out = args.out or tuned_path(config, args.gripper)
     save_best(best, out, config, args.gripper, args.objects, args.seed,
               {**({"config": str(args.config)} if args.config else {}), **overrides}, elapsed)
-    s = best.summary()
+    s = best.summary(config)
     unit = "of the jaw travel" if args.gripper == "rigid" else "of p_max"
     print(f"best {args.gripper} ramp: target {best.target:.4g} {unit}, {best.n_steps} steps: success "
-          f"{s['success_rate']:.1%} (soft {s['success_rate_soft']:.1%} of {s['objects_soft']}, stiff "
-          f"{s['success_rate_stiff']:.1%} of {s['objects_stiff']}), damaged {s['damage_rate']:.1%}, slipped "
+          f"{s['success_rate']:.1%} (force-controlled {s['success_rate_force']:.1%} of {s['objects_force']}, "
+          f"position-controlled {s['success_rate_position']:.1%} of {s['objects_position']}), damaged "
+          f"{s['damage_rate']:.1%}, slipped "
           f"{s['slip_rate']:.1%}; {len(cands)} candidates x {args.objects} objects in {elapsed:.0f} s")
     print(f"wrote {out}")
     if args.plot is not None:

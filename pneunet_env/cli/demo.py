@@ -118,7 +118,7 @@ def run(args: argparse.Namespace) -> int:
     others = entries[1:]
     print(f"\n{main.name}: {main.label}")
     head = f"{'k~ bin':>19}  {'mu_obj (kPa)':>17}  {'success':>7}  {'damaged':>7}  {'slipped':>7}  {'peak F (kPa)':>12}"
-    head += "".join(f"  {e.name[:16]:>16}" for e in others)
+    head += "".join(f"  {_short(e.name)[:16]:>16}" for e in others)
     print(head)
     rate = lambda rs, key: float(np.mean([r[key] for r in rs])) if rs else math.nan  # noqa: E731
     for b in range(args.bins):
@@ -135,7 +135,7 @@ def run(args: argparse.Namespace) -> int:
         rs = [r for r in results if r["policy"] == e.name]
         soft = [r for r in rs if r["stiffness"] < SOFT_MAX]
         stiff = [r for r in rs if r["stiffness"] >= STIFF_MIN]
-        print(f"{e.name:>16}: success {rate(rs, 'success'):4.0%} overall; soft (k~ < 1e-4) "
+        print(f"{_short(e.name):>16}: success {rate(rs, 'success'):4.0%} overall; soft (k~ < 1e-4) "
               f"{_pct(rate(soft, 'success'))}, stiff (k~ >= 1e-3) {_pct(rate(stiff, 'success'))}   [{e.label}]")
     if others:
         print("(other policies' columns: success, and the failures as d = damaged, s = slipped)")
@@ -152,6 +152,11 @@ def run(args: argparse.Namespace) -> int:
                                          "bin_edges": edges.tolist(), "episodes": results}, indent=1))
         print(f"wrote {args.json}")
     return 0
+
+
+def _short(name: str) -> str:
+    """A policy's name in a table: a model's file stem (``agents/models/ppo_kitchen.zip`` -> ``ppo_kitchen``)."""
+    return Path(name.split(".zip:")[0]).stem if ".zip" in name else name
 
 
 def _fmt(r) -> str:
@@ -203,25 +208,27 @@ def _run_distribution(args: argparse.Namespace, cfg, entries) -> int:
     print("regime at 60 kPa, from the mechanics: force-controlled (the object yields) or position-controlled "
           "(it blocks the actuator)\n")
     cols = [(REGIMES[0], reg == 0), (REGIMES[1], reg == 1), ("all", np.ones(len(reg), bool))]
-    print(f"{'policy':>16}" + "".join(f"  {name + f' ({int(m.sum())})':>26}" for name, m in cols))
+    print(f"{'policy':>18}" + "".join(f"  {name + f' ({int(m.sum())})':>26}" for name, m in cols))
     summary = {}
     for e in entries:
         ok = np.array([r["success"] for r in results[e.name]])
         cells = [_rate_cell(ok, m) for _, m in cols]
         summary[e.name] = {name: (float(ok[m].mean()) if m.any() else math.nan) for name, m in cols}
-        print(f"{e.name:>16}" + "".join(f"  {c:>26}" for c in cells))
+        print(f"{_short(e.name):>18}" + "".join(f"  {c:>26}" for c in cells))
     print("\nby object class (share of draws, share force-controlled), success:")
     names = list(dict.fromkeys(classes))
-    print(f"{'class':>14}  {'draws':>5}  {'force':>5}" + "".join(f"  {e.name[:12]:>12}" for e in entries))
+    widths = [max(9, len(_short(e.name))) for e in entries]
+    heads = "".join(f"  {_short(e.name):>{w}}" for e, w in zip(entries, widths, strict=True))
+    print(f"{'class':>14}  {'draws':>5}  {'force':>5}" + heads)
     cls = np.array(classes)
     for n in names:
         m = cls == n
         line = f"{n:>14}  {m.mean():5.0%}  {np.mean(reg[m] == 0):5.0%}"
-        for e in entries:
+        for e, w in zip(entries, widths, strict=True):
             ok = np.array([r["success"] for r in results[e.name]])
-            line += f"  {ok[m].mean():12.0%}"
+            line += f"  {ok[m].mean():{w}.0%}"
         print(line)
-    print("\n" + "; ".join(f"{e.name}: {e.label}" for e in entries))
+    print("\n" + "; ".join(f"{_short(e.name)}: {e.label}" for e in entries))
     print(f"\n{len(entries) * len(seeds)} episodes in {elapsed:.1f} s")
     if args.json is not None:
         args.json.parent.mkdir(parents=True, exist_ok=True)

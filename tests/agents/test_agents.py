@@ -257,10 +257,22 @@ def test_search_finds_the_best_of_a_small_grid():
 
 def test_best_candidate_breaks_ties_by_return_then_the_middle():
     z = np.zeros(1)
-    mk = lambda t, s, r: Candidate(t, 20, s, 0, 0, r, z, z)  # noqa: E731
+    mk = lambda t, s, r: Candidate(t, 20, s, 0, 0, r, z, z, z)  # noqa: E731
     cands = [mk(0.1, 0.5, 0.0), mk(0.2, 0.6, 0.1), mk(0.3, 0.6, 0.2), mk(0.4, 0.6, 0.2), mk(0.5, 0.6, 0.2),
              mk(0.6, 0.2, 1.0)]
     assert best_candidate(cands).target == 0.4
+
+
+def test_search_summary_splits_by_the_mechanics_regime():
+    # on hand-scale objects the paper ring's k~ thresholds would call everything stiff; the search's score is split
+    # by the regime read off the mechanics (a 4.3 kPa gel of R = 40 mm yields, an apple of R = 17.6 mm blocks)
+    cfg = load_config()
+    k = np.array([1.56e-3, 55.0, 55.0])
+    c = np.array([5.0 / 40.0, 5.0 / 17.6, 5.0 / 17.6])
+    cand = Candidate(0.5, 20, 2 / 3, 0.0, 1 / 3, 0.0, np.array([False, True, True]), k, c)
+    s = cand.summary(cfg)
+    assert (s["objects_force"], s["objects_position"]) == (1, 2)
+    assert s["success_rate_force"] == 0.0 and s["success_rate_position"] == 1.0
 
 
 def test_strain_crush_fraction():

@@ -175,3 +175,34 @@ def test_statistics_save_is_atomic(tmp_path, monkeypatch):
     with pytest.raises(OSError, match="rename failed"):
         NormalizationStats(True, True, 1.0, 1.0, 1e-8, 0.9, None, None).save(path)
     assert path.read_bytes() == before and [p.name for p in tmp_path.iterdir()] == ["s.json"]
+
+
+@pytest.mark.parametrize("name, volume", [("ppo_kitchen", False), ("ppo_kitchen_volume", True)])
+def test_a_model_runs_on_the_env_it_was_trained_for(name, volume):
+    # a model trained with observe_volume runs with it (and one trained without, without), whatever the config says;
+    # before, the demo crashed inside SB3 on the observation's shape
+    pytest.importorskip("stable_baselines3")
+    from pneunet_env import load_config
+
+    cfg = load_config(observe_volume=not volume)
+    entry = make_policy(str(MODELS / f"{name}.zip"), cfg)
+    assert entry.env_kwargs == {"observe_volume": volume}
+    assert ("volume" in entry.label) == volume
+    env = entry.make_env(cfg)
+    obs, _ = env.reset(seed=0)
+    assert obs.shape == ((2,) if volume else (1,))
+    assert np.all(np.abs(entry.policy(obs)) <= 1.0)
+    env.close()
+
+
+def test_a_model_of_another_observation_is_refused(tmp_path):
+    sb3 = pytest.importorskip("stable_baselines3")
+    import gymnasium as gym
+
+    class Wide(gym.Env):
+        observation_space = gym.spaces.Box(-1.0, 1.0, (3,), np.float32)
+        action_space = gym.spaces.Box(-1.0, 1.0, (1,), np.float32)
+
+    sb3.PPO("MlpPolicy", Wide(), n_steps=8, batch_size=8, device="cpu").save(tmp_path / "wide.zip")
+    with pytest.raises(ValueError, match=r"observes shape \(3,\)"):
+        make_policy(str(tmp_path / "wide.zip"))
