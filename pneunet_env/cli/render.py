@@ -4,6 +4,8 @@ For each object stiffness ``k~`` (``--stiffness``, several allowed), one episode
 is run with the object pinned and the scripted :class:`agents.scripted.LinearRamp` to ``--target`` of
 ``p_max`` over ``--steps`` steps; every frame is saved as ``OUT/frames/k<K>_<step>.png`` and a contact
 sheet (one row per stiffness, ``--columns`` frames evenly spaced in time) as ``OUT/sheet.png``.
+``--object NAME ...`` instead runs one episode per catalogue class (the env draws its object from that class
+alone, ``class_weights: {NAME: 1}``, with the reset seed), frames ``OUT/frames/<NAME>_<step>.png``.
 PNGs are written with :func:`pneunet_env.envs.render.save_png` (zlib only; no matplotlib needed).
 """
 
@@ -19,8 +21,11 @@ from pneunet_env.cli.progress import add_progress_argument, progress
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", required=True, type=Path, help="output folder (created)")
-    parser.add_argument("--stiffness", type=float, nargs="+", default=[1e-5, 1e-4, 1e-2],
+    parser.add_argument("--stiffness", type=float, nargs="+", default=None,
                         help="object stiffness(es) k~ = k_obj w/mu, one episode each (default 1e-5 1e-4 1e-2)")
+    parser.add_argument("--object", nargs="+", default=None, metavar="CLASS",
+                        help="catalogue class(es), one episode each, the object drawn from that class (instead of "
+                             "--stiffness), e.g. gelatin_gel kiwifruit apple")
     parser.add_argument("--steps", type=int, default=40, help="ramp steps from 0 to the target (default 40)")
     parser.add_argument("--target", type=float, default=1.0, help="ramp target, fraction of p_max (default 1)")
     parser.add_argument("--columns", type=int, default=6, help="frames per stiffness on the sheet (default 6)")
@@ -50,15 +55,29 @@ def run(args: argparse.Namespace) -> int:
         overrides["render_width"] = args.width
     if args.height is not None:
         overrides["render_height"] = args.height
+    if args.object is not None and args.stiffness is not None:
+        raise SystemExit("give --stiffness or --object, not both")
+    if args.object is not None:  # (name, overrides, reset options) per episode
+        from pneunet_env.catalogue import load_catalogue
+
+        known = load_catalogue()
+        for name in args.object:
+            if name not in known or not known[name].in_annulus_model:
+                inside = sorted(n for n, c in known.items() if c.in_annulus_model)
+                raise SystemExit(f"--object {name!r}: not a catalogue class inside the model; one of {inside}")
+        episodes = [(name, {"class_weights": {name: 1.0}}, None) for name in args.object]
+    else:
+        episodes = [(f"k{k:.0e}", {}, {"object_stiffness": k}) for k in (args.stiffness or [1e-5, 1e-4, 1e-2])]
     frames_dir = args.out / "frames"
     frames_dir.mkdir(parents=True, exist_ok=True)
     rows = []
-    bar = progress(total=len(args.stiffness) * (args.steps + 1), desc="render", unit="frame", enabled=args.progress)
-    for k in args.stiffness:
-        bar.set_description_str(f"render k~={k:.0e}")
-        env = gym.make("PneuNetGrasp-v0", render_mode="rgb_array", config=args.config, **overrides)
+    bar = progress(total=len(episodes) * (args.steps + 1), desc="render", unit="frame", enabled=args.progress)
+    for tag, extra, options in episodes:
+        bar.set_description_str(f"render {tag}")
+        env = gym.make("PneuNetGrasp-v0", render_mode="rgb_array", config=args.config, **overrides, **extra)
         policy = LinearRamp(args.target, args.steps, env.unwrapped.config)
-        obs, info = env.reset(seed=args.seed, options={"object_stiffness": k})
+        obs, info = env.reset(seed=args.seed, options=options)
+        k = info["object_stiffness"]
         frames = [env.render()]
         bar.update()
         events = []
@@ -73,13 +92,13 @@ def run(args: argparse.Namespace) -> int:
         env.close()
         bar.update(args.steps + 1 - len(frames))  # the steps of an episode that ended early
         for t, f in enumerate(frames):
-            save_png(frames_dir / f"k{k:.0e}_{t:03d}.png", f)
+            save_png(frames_dir / f"{tag}_{t:03d}.png", f)
         idx = np.unique(np.linspace(0, len(frames) - 1, args.columns).round().astype(int))
         row = [frames[i] for i in idx]
         row += [np.full_like(frames[0], 255)] * (args.columns - len(row))
         rows.extend(row)
         bar.write(
-            f"k~={k:.1e}: {len(frames)} frames, final p={info['pressure_kpa']:.1f} kPa, "
+            f"{tag}: k~={k:.2e}, {len(frames)} frames, final p={info['pressure_kpa']:.1f} kPa, "
             f"curvature {info['curvature_per_m']:.1f} /m, traction {info['contact_force_kpa']:.3g} kPa"
             + (f", {events[0]}" if events else "")
         )

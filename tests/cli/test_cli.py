@@ -200,3 +200,19 @@ def test_tqdm_is_imported_only_by_the_helper():
     for path in [*ROOT.joinpath("pneunet_env").rglob("*.py"), *ROOT.joinpath("agents").rglob("*.py")]:
         if path not in allowed:
             assert not any(m.split(".")[0] == "tqdm" for m in _imported_modules(path)), path
+
+
+def test_a_closed_pipe_ends_a_command_quietly(monkeypatch, tmp_path):
+    # `pneunet-grasp demo | head -1`: the reader goes away; the command stops with 128 + SIGPIPE, not a traceback
+    from pneunet_env.cli import render
+
+    def run(args):
+        raise BrokenPipeError(32, "Broken pipe")
+
+    monkeypatch.setattr(render, "run", run)
+    dup2 = []
+    monkeypatch.setattr(os, "dup2", lambda a, b: dup2.append(b))
+    with open(tmp_path / "out", "w") as out:
+        monkeypatch.setattr(sys, "stdout", out)
+        assert main(["render", "--out", str(tmp_path)]) == 141
+        assert dup2 == [out.fileno()]

@@ -242,5 +242,24 @@ def test_render_command_writes_frames_and_sheet(tmp_path):
     assert sheet.shape[0] > 2 * f.shape[0] and sheet.shape[1] > 3 * f.shape[1]
 
 
+def test_render_command_renders_catalogue_classes(tmp_path, capsys):
+    from pneunet_env.cli import render as cmd
+
+    parser = argparse.ArgumentParser()
+    cmd.add_arguments(parser)
+    args = parser.parse_args(["--out", str(tmp_path), "--object", "gelatin_gel", "apple", "--steps", "4",
+                              "--columns", "2", "--seed", "2"])
+    assert cmd.run(args) == 0
+    names = {f.name.rsplit("_", 1)[0] for f in (tmp_path / "frames").glob("*.png")}
+    assert names == {"gelatin_gel", "apple"}
+    out = capsys.readouterr().out
+    assert "gelatin_gel: k~=" in out and "apple: k~=" in out
+    for bad, message in ((["--object", "bread"], "not a catalogue class inside the model"),  # outside the model
+                         (["--object", "tofu"], "not a catalogue class inside the model"),
+                         (["--object", "apple", "--stiffness", "1e-3"], "not both")):
+        with pytest.raises(SystemExit, match=message):
+            cmd.run(parser.parse_args(["--out", str(tmp_path), *bad]))
+
+
 if __name__ == "__main__":  # python tests/envs/test_render.py: rewrite the reference frames
     sys.exit(_write_reference_frames())
