@@ -109,7 +109,13 @@ class GraspObject:
             shear_modulus_kpa, thickness_mm, curvature_per_m, density_kg_m3, failure_strain = np.broadcast_arrays(
                 *(np.asarray(a, dtype=float) for a in args)
             )
-        k = _k_from_mu(shear_modulus_kpa, thickness_mm, curvature_per_m, scales=scales)
+        with np.errstate(over="ignore"):
+            k = _k_from_mu(shear_modulus_kpa, thickness_mm, curvature_per_m, scales=scales)
+            failure_stress = 3.0 * np.asarray(failure_strain, float) * np.asarray(shear_modulus_kpa, float)
+        if not (np.all(np.isfinite(k)) and np.all(np.isfinite(failure_stress))):
+            raise ValueError(f"object_shear_modulus_kpa={shear_modulus_kpa!r} with object_failure_strain="
+                             f"{failure_strain!r}: the object's stiffness or failure stress (3 eps_f mu_obj) is not a "
+                             "finite number")
         c = np.asarray(curvature_per_m, dtype=float) * scales.width_mm * 1e-3
         if np.any(c >= np.pi):
             raise ValueError(f"object curvature_per_m={curvature_per_m!r} gives w kappa_obj >= pi")
@@ -122,7 +128,7 @@ class GraspObject:
             stiffness=_as(k),
             curvature=_as(c),
             thickness=_as(np.asarray(thickness_mm, dtype=float) / scales.width_mm),
-            failure_stress_kpa=_as(3.0 * np.asarray(failure_strain, float) * np.asarray(shear_modulus_kpa, float)),
+            failure_stress_kpa=_as(failure_stress),
         )
 
     @classmethod

@@ -114,6 +114,10 @@ def test_pins_override_without_changing_the_other_draws():
         ({"object_stiffness": float("nan")}, "object_stiffness"),
         ({"object_thickness_mm": "x"}, "object_thickness_mm"),
         ({"object_thickness_mm": 500.0}, "thickness"),
+        # finite, but the failure stress 3 eps_f mu_obj (or k~) overflows: refused, not an object that never breaks
+        ({"object_shear_modulus_kpa": 1e10, "object_failure_strain": 1e300}, "object_failure_strain=1e\\+300.* not a "
+         "finite number"),
+        ({"object_shear_modulus_kpa": 1e308}, "object_shear_modulus_kpa=1e\\+308.* not a finite number"),
     ],
 )
 def test_bad_pins_are_named(pins, match):
