@@ -226,7 +226,7 @@ def _run_distribution(args: argparse.Namespace, cfg, entries) -> int:
         line = f"{n:>14}  {m.mean():5.0%}  {np.mean(reg[m] == 0):5.0%}"
         for e, w in zip(entries, widths, strict=True):
             ok = np.array([r["success"] for r in results[e.name]])
-            line += f"  {ok[m].mean():{w}.0%}"
+            line += f"  {_rate(float(ok[m].mean())):>{w}}"
         print(line)
     print("\n" + "; ".join(f"{_short(e.name)}: {e.label}" for e in entries))
     print(f"\n{len(entries) * len(seeds)} episodes in {elapsed:.1f} s")
@@ -240,4 +240,11 @@ def _run_distribution(args: argparse.Namespace, cfg, entries) -> int:
 
 
 def _rate_cell(ok: np.ndarray, mask: np.ndarray) -> str:
-    return "-" if not mask.any() else f"{ok[mask].mean():.0%}"
+    return "-" if not mask.any() else _rate(float(ok[mask].mean()))
+
+
+def _rate(x: float) -> str:
+    """A success rate in whole per cent, with one decimal where whole per cent would hide a miss or a hit
+    (``0.995`` is ``99.5%``, not ``100%``)."""
+    whole = f"{x:.0%}"
+    return f"{x:.1%}" if (whole == "100%" and x < 1.0) or (whole == "0%" and x > 0.0) else whole

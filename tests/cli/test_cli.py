@@ -216,3 +216,9 @@ def test_a_closed_pipe_ends_a_command_quietly(monkeypatch, tmp_path):
         monkeypatch.setattr(sys, "stdout", out)
         assert main(["render", "--out", str(tmp_path)]) == 141
         assert dup2 == [out.fileno()]
+
+
+def test_demo_rates_do_not_hide_a_miss():
+    from pneunet_env.cli.demo import _rate
+
+    assert [_rate(x) for x in (1.0, 0.995, 0.5, 0.004, 0.0)] == ["100%", "99.5%", "50%", "0.4%", "0%"]
