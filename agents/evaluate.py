@@ -42,7 +42,7 @@ from pneunet_env.cli.progress import progress as progress_bar
 from pneunet_env.config import EnvConfig, load_config
 
 __all__ = ["run_episode", "stiffness_grid", "evaluate_policies", "evaluate_distribution", "decade_table",
-           "regime_summary", "use_case_regimes",
+           "regime_summary", "object_regimes", "regime_rates", "use_case_regimes",
            "plot_success", "plot_schedules", "parse_overrides", "SOFT_MAX", "STIFF_MIN",
            "add_arguments", "run"]
 
@@ -192,6 +192,8 @@ def evaluate_distribution(entries, config: EnvConfig, n_objects: int, seed: int 
             "success_rate": float(ok.mean()),
             "damage_rate": float(np.mean([r["damaged"] for r in res])),
             "slip_rate": float(np.mean([r["dropped"] for r in res])),
+            **regime_rates(ok, k, [r["curvature"] for r in res], config),
+            # the paper ring's k~ bins (every hand-scale object is above them)
             "success_rate_soft": float(ok[k < SOFT_MAX].mean()) if (k < SOFT_MAX).any() else math.nan,
             "success_rate_stiff": float(ok[k >= STIFF_MIN].mean()) if (k >= STIFF_MIN).any() else math.nan,
             "objects_soft": int((k < SOFT_MAX).sum()),
@@ -243,6 +245,26 @@ def regime_summary(rows) -> dict[str, dict[str, dict[str, float]]]:
     return out
 
 
+def object_regimes(stiffness, curvature, config: EnvConfig) -> np.ndarray:
+    """Each object's regime code (:data:`pneunet_env.physics.regimes.FORCE`, ``POSITION`` or ``UNREACHABLE``),
+    read off the mechanics at ``config``'s maximum pressure, with its actuator and solver settings."""
+    from pneunet_env.physics.regimes import regime
+
+    return regime(stiffness, curvature, config.pressure_max, config.actuator_params, config.solver)
+
+
+def regime_rates(success, stiffness, curvature, config: EnvConfig) -> dict[str, Any]:
+    """``{success_rate_force, success_rate_position, objects_force, objects_position}``: success split by the
+    objects' regimes (:func:`object_regimes`; NaN for an empty side)."""
+    from pneunet_env.physics.regimes import FORCE, POSITION
+
+    ok = np.asarray(success, dtype=bool)
+    reg = object_regimes(stiffness, curvature, config)
+    rate = lambda m: float(ok[m].mean()) if m.any() else math.nan  # noqa: E731
+    return {"success_rate_force": rate(reg == FORCE), "success_rate_position": rate(reg == POSITION),
+            "objects_force": int((reg == FORCE).sum()), "objects_position": int((reg == POSITION).sum())}
+
+
 def use_case_regimes(use_case: str, draws: int = 4000, seed: int = 0) -> dict[str, Any]:
     """What a catalogue use case draws, read off the mechanics (docs/env.md's table of use cases).
 
@@ -253,12 +275,11 @@ def use_case_regimes(use_case: str, draws: int = 4000, seed: int = 0) -> dict[st
     ranges, not the draws).
     """
     from pneunet_env.catalogue import load_catalogue, use_case_weights
-    from pneunet_env.physics.regimes import regime
     from pneunet_env.task import sample_object
 
     cfg = load_config(use_case=use_case)
     obj = sample_object(np.random.default_rng(seed), cfg, size=draws)
-    reg = regime(obj.stiffness, obj.curvature, cfg.pressure_max, cfg.actuator_params, cfg.solver)
+    reg = object_regimes(obj.stiffness, obj.curvature, cfg)
     catalogue = load_catalogue()
     moduli = [catalogue[name].youngs_modulus_kpa for name, w in use_case_weights(use_case).items() if w > 0]
     return {"use_case": use_case, "draws": draws, "seed": seed,
@@ -513,7 +534,9 @@ def run(args: argparse.Namespace) -> int:
     if dist is not None:
         print(f"on {args.objects} objects from the env's own distribution (held-out seeds):")
         for name, d in dist.items():
-            print(f"  {name:>24}: success {d['success_rate']:6.1%}  (soft {d['success_rate_soft']:.0%} of "
+            print(f"  {name:>24}: success {d['success_rate']:6.1%}  (force-controlled {d['success_rate_force']:.0%} "
+                  f"of {d['objects_force']}, position-controlled {d['success_rate_position']:.0%} of "
+                  f"{d['objects_position']}; the paper's k~ bins: soft {d['success_rate_soft']:.0%} of "
                   f"{d['objects_soft']}, stiff {d['success_rate_stiff']:.0%} of {d['objects_stiff']}), damaged "
                   f"{d['damage_rate']:.1%}, slipped {d['slip_rate']:.1%}")
         print()

@@ -510,7 +510,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", type=Path, default=Path("map"), help="output directory: map.json, map.png "
                                                                         "(default ./map)")
     parser.add_argument("--grid", type=int, nargs=2, default=[19, 11], metavar=("NE", "NR"),
-                        help="cells: NE log-spaced moduli x NR radii (default 19 11: 4 per decade, 2.5 mm)")
+                        help="cells: NE log-spaced moduli x NR radii (default 19 11: about 4 per decade, 2.5 mm)")
     parser.add_argument("--e-range", type=float, nargs=2, default=list(E_RANGE_KPA), metavar=("LO", "HI"),
                         help="Young's modulus range, kPa (default 0.1 5000)")
     parser.add_argument("--r-range", type=float, nargs=2, default=list(R_RANGE_MM), metavar=("LO", "HI"),

@@ -450,6 +450,30 @@ def convert_vecnormalize(pickle_path: str | Path, json_path: str | Path) -> Path
     return NormalizationStats.from_vecnormalize(load_pickled_vecnormalize(pickle_path)).save(json_path)
 
 
+def _observes_volume(path: Path, model) -> bool:
+    """Whether a trained model observes ``[pressure, volume change]`` (``observe_volume=True``) or the pressure alone.
+
+    Its training's metadata says so where there is one (``hyperparameters.env_kwargs.observe_volume``; a
+    frame-stacked model is refused: :class:`SB3Policy` feeds one observation); else its observation's shape:
+    ``(1,)`` or ``(2,)``. ``ValueError`` for any other shape, or a shape that contradicts the metadata.
+    """
+    shape = tuple(getattr(model.observation_space, "shape", None) or ())
+    hp = _model_meta(path).get("hyperparameters")
+    hp = hp if isinstance(hp, dict) else {}
+    if hp.get("frame_stack") not in (None, 1):
+        raise ValueError(f"model {str(path)!r}: trained with frame_stack={hp['frame_stack']!r}; a frame-stacked model "
+                         "is not supported here (the policy is fed one observation at a time)")
+    if shape not in ((1,), (2,)):
+        raise ValueError(f"model {str(path)!r}: observes shape {shape}; PneuNetGrasp-v0 gives (1,) (the pressure) "
+                         "or (2,) (with observe_volume: the pressure and the chamber's volume change)")
+    env_kwargs = hp.get("env_kwargs") if isinstance(hp.get("env_kwargs"), dict) else {}
+    volume = bool(env_kwargs.get("observe_volume", shape == (2,)))
+    if volume != (shape == (2,)):
+        raise ValueError(f"model {str(path)!r}: its metadata says observe_volume={volume} but it observes shape "
+                         f"{shape}")
+    return volume
+
+
 def _model_meta(path: Path) -> dict[str, Any]:
     """The model's metadata: its exported JSON sidecar, else the ``run.json`` of the training run it lies in
     (``best_model.zip``, ``final_model.zip`` in the run folder, ``checkpoints/model_*.zip`` one level down), whose
@@ -515,11 +539,7 @@ class SB3Policy:
         config = EnvConfig() if config is None else config
         self.step_fraction = config.task.max_pressure_step_kpa / config.task.max_pressure_kpa
         self.model = getattr(sb3, self.algo).load(self.path, device="cpu")
-        shape = tuple(getattr(self.model.observation_space, "shape", None) or ())
-        if shape not in ((1,), (2,)):
-            raise ValueError(f"model {str(path)!r}: observes shape {shape}; PneuNetGrasp-v0 gives (1,) (the pressure) "
-                             "or (2,) (with observe_volume: the pressure and the chamber's volume change)")
-        self.observe_volume = shape == (2,)
+        self.observe_volume = _observes_volume(self.path, self.model)
         """Whether the model observes the chamber's volume change: its env needs ``observe_volume=True``."""
         self.deterministic = deterministic
         self._norm = None

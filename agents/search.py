@@ -64,16 +64,14 @@ class Candidate:
 
     def summary(self, config: EnvConfig) -> dict[str, Any]:
         """The scores, and success by the object's regime read off the mechanics at ``config``'s maximum pressure
-        (:func:`pneunet_env.physics.regimes.regime`: force-controlled, position-controlled; the paper ring's
-        ``k~`` thresholds would class every hand-scale object as stiff)."""
-        from pneunet_env.physics.regimes import FORCE, POSITION, regime
+        (:func:`agents.evaluate.regime_rates`: force-controlled, position-controlled; the paper ring's ``k~``
+        thresholds would class every hand-scale object as stiff). For the rigid jaw too, the regime is the
+        pneu-net's on the same object."""
+        from agents.evaluate import regime_rates
 
-        reg = regime(self.stiffness, self.curvature, config.pressure_max, config.actuator_params, config.solver)
-        rate = lambda m: float(self.success[m].mean()) if m.any() else math.nan  # noqa: E731
         return {"target": self.target, "n_steps": self.n_steps, "success_rate": self.success_rate,
                 "damage_rate": self.damage_rate, "slip_rate": self.slip_rate, "mean_return": self.mean_return,
-                "success_rate_force": rate(reg == FORCE), "success_rate_position": rate(reg == POSITION),
-                "objects_force": int((reg == FORCE).sum()), "objects_position": int((reg == POSITION).sum())}
+                **regime_rates(self.success, self.stiffness, self.curvature, config)}
 
 
 def object_seeds(n: int, seed: int = 0) -> list[int]:

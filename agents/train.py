@@ -739,6 +739,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--export", type=Path, default=None, metavar="PATH_STEM",
                         help="copy the best model to PATH_STEM.zip (+ _vecnormalize.json, .json), "
                              "e.g. agents/models/ppo_pneunet")
+    parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                        help="set an environment config key in env_kwargs (repeatable; VALUE is YAML), e.g. "
+                             "--set observe_volume=true")
     parser.add_argument("--no-progress", action="store_true", help="no progress bar")
 
 
@@ -751,6 +754,7 @@ def _command(args: argparse.Namespace, run_dir: Path) -> str:
                         ("--vec-env", args.vec_env), ("--export", args.export)):
         if value is not None:
             parts.append(f"{flag} {value:g}" if isinstance(value, float) else f"{flag} {value}")
+    parts += [f"--set {item}" for item in getattr(args, "overrides", [])]
     if args.resume is not None:
         parts.append("--resume" if args.resume == "latest" else f"--resume {args.resume}")
     return " ".join(parts)
@@ -770,6 +774,13 @@ def run(args: argparse.Namespace) -> int:
             hp["max_train_minutes"] = float(args.max_minutes)
         if args.vec_env is not None:
             hp["vec_env"] = args.vec_env
+        if args.overrides:
+            from agents.evaluate import parse_overrides
+            from pneunet_env.config import load_config
+
+            env_kwargs = {**(hp.get("env_kwargs") or {}), **parse_overrides(args.overrides)}
+            load_config(None, **env_kwargs)  # a bad key or value is named here, before training starts
+            hp["env_kwargs"] = env_kwargs
     except ValueError as exc:
         raise SystemExit(f"pneunet-grasp train: {exc}") from None
     run_dir = args.run_dir or Path("runs") / hp["algo"]

@@ -331,6 +331,10 @@ def _batch_object(shear_modulus_kpa, stiffness, thickness_mm, curvature_per_m, d
         else:
             mu = given / winkler_stiffness(1.0, H_mm, kap, scales.width_mm, scales.shear_modulus_kpa)
             k = given
+        failure_stress = 3.0 * eps * mu
+        _first_bad(label, given, ~np.isfinite(k) | ~np.isfinite(mu) | ~np.isfinite(failure_stress),
+                   "with its failure_strain gives a stiffness or failure stress (3 eps_f mu_obj) that is not a finite "
+                   "number")
         c = kap * scales.width_mm * 1e-3
         _first_bad("curvature_per_m", kap, c >= np.pi, "gives w kappa_obj >= pi")
         _first_bad("curvature_per_m", kap, c < MIN_OBJECT_CURVATURE, f"gives w kappa_obj < {MIN_OBJECT_CURVATURE:g}")
@@ -343,7 +347,7 @@ def _batch_object(shear_modulus_kpa, stiffness, thickness_mm, curvature_per_m, d
         stiffness=k,
         curvature=c,
         thickness=H_mm / scales.width_mm,
-        failure_stress_kpa=3.0 * eps * mu,
+        failure_stress_kpa=failure_stress,
         class_id=np.full(np.shape(k), -1, dtype=np.int64),
     )
 

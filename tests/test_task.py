@@ -125,6 +125,16 @@ def test_bad_pins_are_named(pins, match):
         task.sample_object(np.random.default_rng(0), CFG, pinned=pins)
 
 
+@pytest.mark.parametrize("pins", [{"object_shear_modulus_kpa": 1e10, "object_failure_strain": 1e300},
+                                  {"object_shear_modulus_kpa": 1e308}, {"object_stiffness": 1e306}])
+def test_a_batch_refuses_what_one_object_refuses(pins):
+    # the vector env's objects (a batch) get the same overflow check as the single env's
+    with pytest.raises(ValueError, match="not a finite number|must be finite"):
+        task.sample_object(np.random.default_rng(0), CFG, pinned=pins)
+    with pytest.raises(ValueError, match="not a finite number"):
+        task.sample_object(np.random.default_rng(0), CFG, size=3, pinned=pins)
+
+
 # ---- action -> pressure ---------------------------------------------------------------------------------
 
 

@@ -140,10 +140,34 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(args_in)
     try:
         return int(module.run(args) or 0)
-    except BrokenPipeError:  # the reader went away (``| head``): stop quietly, as a Unix command does
+    except BrokenPipeError:
+        if not _stdout_closed():
+            raise  # some other pipe: a real error
+        return 141  # the reader of stdout went away (``| head``): stop quietly, 128 + SIGPIPE, as a Unix command does
+
+
+def _stdout_closed() -> bool:
+    """Whether stdout is a pipe whose reader has gone away (``poll`` reports an error on its write end); if so,
+    stdout is pointed at ``os.devnull``, so that the interpreter's final flush does not raise again."""
+    try:
+        fd = sys.stdout.fileno()
+    except (AttributeError, OSError, ValueError):  # no file descriptor: the broken pipe was not stdout
+        return False
+    try:
+        import select
+
+        poller = select.poll()
+        poller.register(fd, select.POLLOUT)
+        closed = any(event & select.POLLERR for _, event in poller.poll(0))
+    except (AttributeError, OSError):  # no poll (Windows): assume stdout, as Python's own recipe does
+        closed = True
+    if closed:
         devnull = os.open(os.devnull, os.O_WRONLY)
-        os.dup2(devnull, sys.stdout.fileno())  # so that the interpreter's final flush does not raise again
-        return 141  # 128 + SIGPIPE
+        try:
+            os.dup2(devnull, fd)
+        finally:
+            os.close(devnull)
+    return closed
 
 
 if __name__ == "__main__":  # pragma: no cover

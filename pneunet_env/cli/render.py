@@ -18,11 +18,15 @@ import numpy as np
 
 from pneunet_env.cli.progress import add_progress_argument, progress
 
+DEFAULT_STIFFNESS = (1e-5, 1e-4, 1e-2)
+"""The default episodes' ``k~``: soft, through the paper ring's fold, stiff."""
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", required=True, type=Path, help="output folder (created)")
     parser.add_argument("--stiffness", type=float, nargs="+", default=None,
-                        help="object stiffness(es) k~ = k_obj w/mu, one episode each (default 1e-5 1e-4 1e-2)")
+                        help="object stiffness(es) k~ = k_obj w/mu, one episode each (default "
+                             f"{' '.join(f'{k:.0e}' for k in DEFAULT_STIFFNESS)})")
     parser.add_argument("--object", nargs="+", default=None, metavar="CLASS",
                         help="catalogue class(es), one episode each, the object drawn from that class (instead of "
                              "--stiffness), e.g. gelatin_gel kiwifruit apple")
@@ -65,9 +69,10 @@ def run(args: argparse.Namespace) -> int:
             if name not in known or not known[name].in_annulus_model:
                 inside = sorted(n for n, c in known.items() if c.in_annulus_model)
                 raise SystemExit(f"--object {name!r}: not a catalogue class inside the model; one of {inside}")
-        episodes = [(name, {"class_weights": {name: 1.0}}, None) for name in args.object]
+        episodes = [(name, {"class_weights": {name: 1.0}}, None) for name in dict.fromkeys(args.object)]
     else:
-        episodes = [(f"k{k:.0e}", {}, {"object_stiffness": k}) for k in (args.stiffness or [1e-5, 1e-4, 1e-2])]
+        stiffness = dict.fromkeys(args.stiffness or DEFAULT_STIFFNESS)
+        episodes = [(f"k{k:.0e}", {}, {"object_stiffness": k}) for k in stiffness]
     frames_dir = args.out / "frames"
     frames_dir.mkdir(parents=True, exist_ok=True)
     rows = []

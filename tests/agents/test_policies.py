@@ -206,3 +206,22 @@ def test_a_model_of_another_observation_is_refused(tmp_path):
     sb3.PPO("MlpPolicy", Wide(), n_steps=8, batch_size=8, device="cpu").save(tmp_path / "wide.zip")
     with pytest.raises(ValueError, match=r"observes shape \(3,\)"):
         make_policy(str(tmp_path / "wide.zip"))
+
+
+def test_a_frame_stacked_model_is_refused_not_misread(tmp_path):
+    # a pressure-only model trained with frame_stack: 2 observes shape (2,): its metadata says what it is, and it is
+    # refused instead of being run on observe_volume's [pressure, volume]
+    pytest.importorskip("stable_baselines3")
+    import json
+
+    model = _model_copy(tmp_path)
+    meta = json.loads(model.with_suffix(".json").read_text())
+    meta["hyperparameters"]["frame_stack"] = 2
+    model.with_suffix(".json").write_text(json.dumps(meta))
+    with pytest.raises(ValueError, match="frame_stack=2"):
+        make_policy(str(model))
+    meta["hyperparameters"]["frame_stack"] = None
+    meta["hyperparameters"]["env_kwargs"] = {"observe_volume": True}  # contradicts the model's (1,) observation
+    model.with_suffix(".json").write_text(json.dumps(meta))
+    with pytest.raises(ValueError, match="observe_volume=True but it observes shape"):
+        make_policy(str(model))

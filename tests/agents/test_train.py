@@ -406,6 +406,23 @@ def test_smoke_sac(tmp_path):
     assert (tmp_path / "sac" / "best_model.zip").is_file()
 
 
+@pytest.mark.filterwarnings("ignore::UserWarning")
+def test_set_puts_env_keys_in_env_kwargs(tmp_path):
+    # `--set observe_volume=true` trains the flow-sensor agent from the same config file; the model runs on that env
+    pytest.importorskip("stable_baselines3")
+    from agents.policies import make_policy
+
+    run_dir = tmp_path / "vol"
+    assert _smoke(run_dir, 512, "dummy", ["--set", "observe_volume=true", "--export", str(tmp_path / "m")]) == 0
+    record = json.loads((run_dir / "run.json").read_text())
+    assert record["hyperparameters"]["env_kwargs"] == {"observe_volume": True}
+    assert "--set observe_volume=true" in record["command"]
+    assert make_policy(str(tmp_path / "m.zip")).env_kwargs == {"observe_volume": True}
+    for bad, name in ((["--set", "observe_volum=true"], "observe_volum"), (["--set", "novalue"], "KEY=VALUE")):
+        with pytest.raises(SystemExit, match=name):
+            _smoke(tmp_path / "bad", 512, "dummy", bad)
+
+
 def test_resume_without_checkpoint_fails(tmp_path):
     with pytest.raises(SystemExit, match="no checkpoint"):
         main(["train", "--config", str(PPO), "--run-dir", str(tmp_path / "empty"), "--resume"])

@@ -202,23 +202,45 @@ def test_tqdm_is_imported_only_by_the_helper():
             assert not any(m.split(".")[0] == "tqdm" for m in _imported_modules(path)), path
 
 
-def test_a_closed_pipe_ends_a_command_quietly(monkeypatch, tmp_path):
+def test_a_closed_pipe_ends_a_command_quietly(tmp_path):
     # `pneunet-grasp demo | head -1`: the reader goes away; the command stops with 128 + SIGPIPE, not a traceback
+    code = ("import sys\nimport pneunet_env.cli.render as r\n"
+            "r.run = lambda args: [print('x' * 99) for _ in range(100_000)] and 0\n"
+            "from pneunet_env.cli import main\n"
+            f"sys.exit(main(['render', '--out', {str(tmp_path)!r}]))\n")
+    proc = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    assert proc.stdout.readline() == b"x" * 99 + b"\n"
+    proc.stdout.close()  # the reader goes away; the writer has megabytes left to write
+    err = proc.stderr.read().decode()
+    assert proc.wait(timeout=60) == 141 and "Traceback" not in err, err
+
+
+def test_a_broken_pipe_that_is_not_stdout_is_an_error(monkeypatch, tmp_path):
     from pneunet_env.cli import render
 
     def run(args):
         raise BrokenPipeError(32, "Broken pipe")
 
     monkeypatch.setattr(render, "run", run)
-    dup2 = []
-    monkeypatch.setattr(os, "dup2", lambda a, b: dup2.append(b))
-    with open(tmp_path / "out", "w") as out:
+    monkeypatch.setattr(sys, "stdout", io.StringIO())  # stdout is fine (and has no file descriptor)
+    with pytest.raises(BrokenPipeError):
+        main(["render", "--out", str(tmp_path)])
+    with open(tmp_path / "file", "w") as out:  # stdout is a file, which a reader cannot close
         monkeypatch.setattr(sys, "stdout", out)
-        assert main(["render", "--out", str(tmp_path)]) == 141
-        assert dup2 == [out.fileno()]
+        with pytest.raises(BrokenPipeError):
+            main(["render", "--out", str(tmp_path)])
 
 
 def test_demo_rates_do_not_hide_a_miss():
     from pneunet_env.cli.demo import _rate
 
-    assert [_rate(x) for x in (1.0, 0.995, 0.5, 0.004, 0.0)] == ["100%", "99.5%", "50%", "0.4%", "0%"]
+    assert [_rate(x) for x in (1.0, 0.995, 0.9996, 0.5, 0.004, 0.0004, 0.0)] == [
+        "100%", "99.5%", ">99.9%", "50%", "0.4%", "<0.1%", "0%"]
+
+
+def test_demo_names_models_by_stem_unless_stems_collide():
+    from pneunet_env.cli.demo import _short
+
+    names = ("best-ramp", "agents/models/ppo_kitchen.zip", "runs/a/best_model.zip", "runs/b/best_model.zip")
+    assert [_short(n, names) for n in names] == ["best-ramp", "ppo_kitchen", "runs/a/best_model.zip",
+                                                 "runs/b/best_model.zip"]

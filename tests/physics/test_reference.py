@@ -74,7 +74,7 @@ def _catalogue_extremes():
 
 @pytest.mark.parametrize("name, kobj, c", _catalogue_extremes(), ids=lambda v: v if isinstance(v, str) else "")
 def test_catalogue_extremes_converge_and_match_30_digits(name, kobj, c):
-    """The catalogue's stiffest (k~ up to about 40) and softest objects: loading to 60 kPa in the env's 3 kPa steps
+    """The catalogue's stiffest (k~ up to about 55) and softest objects: loading to 60 kPa in the env's 3 kPa steps
     and back, every state converged (zero gradient, positive-definite Hessian), the end states at 30 digits."""
     import numpy as np
 
