@@ -275,6 +275,7 @@ def use_case_regimes(use_case: str, draws: int = 4000, seed: int = 0) -> dict[st
     ranges, not the draws).
     """
     from pneunet_env.catalogue import load_catalogue, use_case_weights
+    from pneunet_env.physics.regimes import FORCE, POSITION, UNREACHABLE
     from pneunet_env.task import sample_object
 
     cfg = load_config(use_case=use_case)
@@ -283,8 +284,8 @@ def use_case_regimes(use_case: str, draws: int = 4000, seed: int = 0) -> dict[st
     catalogue = load_catalogue()
     moduli = [catalogue[name].youngs_modulus_kpa for name, w in use_case_weights(use_case).items() if w > 0]
     return {"use_case": use_case, "draws": draws, "seed": seed,
-            "force": float(np.mean(reg == 0)), "position": float(np.mean(reg == 1)),
-            "unreachable": float(np.mean(reg == 2)), "max_stiffness": float(np.max(obj.stiffness)),
+            "force": float(np.mean(reg == FORCE)), "position": float(np.mean(reg == POSITION)),
+            "unreachable": float(np.mean(reg == UNREACHABLE)), "max_stiffness": float(np.max(obj.stiffness)),
             "modulus_span_decades": math.log10(max(e[1] for e in moduli) / min(e[0] for e in moduli))}
 
 

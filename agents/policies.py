@@ -450,15 +450,16 @@ def convert_vecnormalize(pickle_path: str | Path, json_path: str | Path) -> Path
     return NormalizationStats.from_vecnormalize(load_pickled_vecnormalize(pickle_path)).save(json_path)
 
 
-def _observes_volume(path: Path, model) -> bool:
+def _observes_volume(path: Path, model, meta: dict[str, Any]) -> bool:
     """Whether a trained model observes ``[pressure, volume change]`` (``observe_volume=True``) or the pressure alone.
 
     Its training's metadata says so where there is one (``hyperparameters.env_kwargs.observe_volume``; a
     frame-stacked model is refused: :class:`SB3Policy` feeds one observation); else its observation's shape:
     ``(1,)`` or ``(2,)``. ``ValueError`` for any other shape, or a shape that contradicts the metadata.
+    ``meta`` is the model's metadata, :func:`_model_meta`, read once by the caller.
     """
     shape = tuple(getattr(model.observation_space, "shape", None) or ())
-    hp = _model_meta(path).get("hyperparameters")
+    hp = meta.get("hyperparameters")
     hp = hp if isinstance(hp, dict) else {}
     if hp.get("frame_stack") not in (None, 1):
         raise ValueError(f"model {str(path)!r}: trained with frame_stack={hp['frame_stack']!r}; a frame-stacked model "
@@ -492,8 +493,8 @@ def _model_meta(path: Path) -> dict[str, Any]:
     return {}
 
 
-def _infer_algo(path: Path) -> str:
-    algo = _model_meta(path).get("algo")
+def _infer_algo(path: Path, meta: dict[str, Any]) -> str:
+    algo = meta.get("algo")
     if isinstance(algo, str) and algo.upper() in _ALGOS:
         return algo.upper()
     from stable_baselines3.common.save_util import load_from_zip_file
@@ -531,15 +532,16 @@ class SB3Policy:
         if torch.get_num_threads() > 2:  # one observation at a time: threads only add overhead
             torch.set_num_threads(1)
         self.path = Path(path)
-        self.algo = _infer_algo(self.path)
-        self.action_mode = str(action or _model_meta(self.path).get("action", "rate"))
+        meta = _model_meta(self.path)
+        self.algo = _infer_algo(self.path, meta)
+        self.action_mode = str(action or meta.get("action", "rate"))
         if self.action_mode not in ACTION_MODES:
             raise ValueError(f"model {str(path)!r}: action mode must be one of {ACTION_MODES}, "
                              f"got {self.action_mode!r}")
         config = EnvConfig() if config is None else config
         self.step_fraction = config.task.max_pressure_step_kpa / config.task.max_pressure_kpa
         self.model = getattr(sb3, self.algo).load(self.path, device="cpu")
-        self.observe_volume = _observes_volume(self.path, self.model)
+        self.observe_volume = _observes_volume(self.path, self.model, meta)
         """Whether the model observes the chamber's volume change: its env needs ``observe_volume=True``."""
         self.deterministic = deterministic
         self._norm = None

@@ -116,10 +116,10 @@ def run(args: argparse.Namespace) -> int:
     print(f"damage: traction > 3 eps_f mu_obj, or indentation > {cfg.task.crush_fraction:g} H;  "
           "slip (hold phase): traction < rho g H / (faces mu_f)")
     others = entries[1:]
-    policy_names = tuple(e.name for e in entries)
+    short = _short_names(e.name for e in entries)
     print(f"\n{main.name}: {main.label}")
     head = f"{'k~ bin':>19}  {'mu_obj (kPa)':>17}  {'success':>7}  {'damaged':>7}  {'slipped':>7}  {'peak F (kPa)':>12}"
-    head += "".join(f"  {_short(e.name, policy_names)[:16]:>16}" for e in others)
+    head += "".join(f"  {short[e.name][:16]:>16}" for e in others)
     print(head)
     rate = lambda rs, key: float(np.mean([r[key] for r in rs])) if rs else math.nan  # noqa: E731
     for b in range(args.bins):
@@ -136,7 +136,7 @@ def run(args: argparse.Namespace) -> int:
         rs = [r for r in results if r["policy"] == e.name]
         soft = [r for r in rs if r["stiffness"] < SOFT_MAX]
         stiff = [r for r in rs if r["stiffness"] >= STIFF_MIN]
-        print(f"{_short(e.name, policy_names):>16}: success {rate(rs, 'success'):4.0%} overall; soft (k~ < 1e-4) "
+        print(f"{short[e.name]:>16}: success {rate(rs, 'success'):4.0%} overall; soft (k~ < 1e-4) "
               f"{_pct(rate(soft, 'success'))}, stiff (k~ >= 1e-3) {_pct(rate(stiff, 'success'))}   [{e.label}]")
     if others:
         print("(other policies' columns: success, and the failures as d = damaged, s = slipped)")
@@ -155,11 +155,13 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _short(name: str, names: tuple[str, ...] = ()) -> str:
-    """A policy's name in a table: a model's file stem (``agents/models/ppo_kitchen.zip`` -> ``ppo_kitchen``), or
-    the whole name where another of ``names`` has the same stem (``runs/a/best_model.zip``, ``runs/b/...``)."""
-    stem = lambda n: Path(n.split(".zip:")[0]).stem if ".zip" in n else n  # noqa: E731
-    return name if sum(stem(n) == stem(name) for n in names) > 1 else stem(name)
+def _short_names(names) -> dict[str, str]:
+    """Each policy's name in a table: a model's file stem (``agents/models/ppo_kitchen.zip`` -> ``ppo_kitchen``),
+    or its whole name where another has the same stem (``runs/a/best_model.zip``, ``runs/b/...``)."""
+    names = list(names)
+    stem = {n: Path(n.split(".zip:")[0]).stem if ".zip" in n else n for n in names}
+    taken = [stem[n] for n in names]
+    return {n: n if taken.count(stem[n]) > 1 else stem[n] for n in names}
 
 
 def _fmt(r) -> str:
@@ -185,7 +187,7 @@ def _run_distribution(args: argparse.Namespace, cfg, entries) -> int:
     from agents.evaluate import HELD_OUT_SEED, object_regimes, run_episode
     from pneunet_env.physics.regimes import REGIMES
 
-    policy_names = tuple(e.name for e in entries)
+    short = _short_names(e.name for e in entries)
     # held-out objects: not the seeds the blind schedules were searched on (agents.search uses seed * 1000003 + i)
     seeds = [HELD_OUT_SEED + args.seed * 1_000_003 + i for i in range(args.objects)]
     t0 = time.perf_counter()
@@ -217,11 +219,11 @@ def _run_distribution(args: argparse.Namespace, cfg, entries) -> int:
         ok = np.array([r["success"] for r in results[e.name]])
         cells = [_rate_cell(ok, m) for _, m in cols]
         summary[e.name] = {name: (float(ok[m].mean()) if m.any() else math.nan) for name, m in cols}
-        print(f"{_short(e.name, policy_names):>18}" + "".join(f"  {c:>26}" for c in cells))
+        print(f"{short[e.name]:>18}" + "".join(f"  {c:>26}" for c in cells))
     print("\nby object class (share of draws, share force-controlled), success:")
     names = list(dict.fromkeys(classes))
-    widths = [max(9, len(_short(e.name, policy_names))) for e in entries]
-    heads = "".join(f"  {_short(e.name, policy_names):>{w}}" for e, w in zip(entries, widths, strict=True))
+    widths = [max(9, len(short[e.name])) for e in entries]
+    heads = "".join(f"  {short[e.name]:>{w}}" for e, w in zip(entries, widths, strict=True))
     print(f"{'class':>14}  {'draws':>5}  {'force':>5}" + heads)
     cls = np.array(classes)
     for n in names:
@@ -231,7 +233,7 @@ def _run_distribution(args: argparse.Namespace, cfg, entries) -> int:
             ok = np.array([r["success"] for r in results[e.name]])
             line += f"  {_rate(float(ok[m].mean())):>{w}}"
         print(line)
-    print("\n" + "; ".join(f"{_short(e.name, policy_names)}: {e.label}" for e in entries))
+    print("\n" + "; ".join(f"{short[e.name]}: {e.label}" for e in entries))
     print(f"\n{len(entries) * len(seeds)} episodes in {elapsed:.1f} s")
     if args.json is not None:
         args.json.parent.mkdir(parents=True, exist_ok=True)

@@ -239,8 +239,8 @@ def test_demo_rates_do_not_hide_a_miss():
 
 
 def test_demo_names_models_by_stem_unless_stems_collide():
-    from pneunet_env.cli.demo import _short
+    from pneunet_env.cli.demo import _short_names
 
     names = ("best-ramp", "agents/models/ppo_kitchen.zip", "runs/a/best_model.zip", "runs/b/best_model.zip")
-    assert [_short(n, names) for n in names] == ["best-ramp", "ppo_kitchen", "runs/a/best_model.zip",
-                                                 "runs/b/best_model.zip"]
+    short = _short_names(iter(names))  # any iterable, as the demo passes a generator
+    assert [short[n] for n in names] == ["best-ramp", "ppo_kitchen", "runs/a/best_model.zip", "runs/b/best_model.zip"]
