@@ -475,7 +475,11 @@ def parse_overrides(items) -> dict[str, Any]:
         key, eq, value = item.partition("=")
         if not eq or not key.strip():
             raise ValueError(f"--set needs KEY=VALUE, got {item!r}")
-        out[key.strip()] = yaml.safe_load(value)
+        try:
+            out[key.strip()] = yaml.safe_load(value)
+        except yaml.YAMLError as exc:
+            msg = " ".join(str(exc).split())
+            raise ValueError(f"--set {item!r}: the value is not valid YAML ({msg})") from None
     return out
 
 
@@ -508,7 +512,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         config = load_config(args.config, **parse_overrides(args.overrides))
         specs = args.policy or list(DEFAULT_POLICIES) + ([str(DEFAULT_MODEL)] if DEFAULT_MODEL.is_file() else [])
-        entries = [make_policy(s, config) for s in specs]
+        entries = [make_policy(s, config, config_path=args.config) for s in specs]
         grid = stiffness_grid(config, args.stiffness_grid, args.k_min, args.k_max)
         if args.episodes < 1:
             raise ValueError(f"--episodes must be >= 1, got {args.episodes}")

@@ -1,6 +1,7 @@
 """``pneunet-grasp map``: where the claim holds, charted over object Young's modulus x radius.
 
-``pneunet-grasp map [--grid NE NR] [--episodes M] [--density RHO ...] [--failure-strain EPS] [--out DIR]``
+``pneunet-grasp map [--grid NE NR] [--episodes M] [--density RHO ...] [--failure-strain EPS] [--out DIR]
+[--config PATH] [--set KEY=VALUE ...]``
 
 Three policies face the same objects, side by side: the **oracle** (knows the object, picks the best constant
 pressure; its successes are the *feasible window*), the **best blind schedule** (``best-ramp``: one linear pressure
@@ -16,11 +17,16 @@ ramp tuned on the default task) and the **rigid jaw** (``rigid``: a blind positi
   being drawn from ranges, failure stress ``3 eps_f mu_obj`` (:func:`pneunet_env.task.object_thresholds`).
 
 The environment is the default task's physics and damage rule (``hoop_strain``) with objects from ranges
-(:func:`map_config`). The blind policies are built on the default task's config (they are tuned there). The rigid
-jaw closes by the default task's millimetres (its ``travel_mm`` is passed) past the default task's nominal object
-(R = 27.5 mm, ``--jaw-nominal-mm``; :func:`jaw_config`), so that it stops where it was tuned to stop: a blind jaw
-meets every object at the same place. Every policy sees the same seeds (``seed * 1000003 + 1000 * cell +
-episode``).
+(:func:`map_config`). ``--config PATH`` and ``--set KEY=VALUE`` (repeatable, VALUE is YAML) change it, e.g. for
+another actuator (``--set top_thickness_mm=1.5 --set shear_modulus_kpa=30``): they apply on top of the map's
+defaults, except the object keys the map pins (it draws objects from ranges spanning ``--r-range``). The blind
+policies are built on the task they were tuned on, the default task, with the same ``--config`` and ``--set``
+(:func:`task_config`): so their targets stay fractions of the config's ``max_pressure_kpa``, and a schedule shipped
+beside the config file (``DIR/NAME.best_ramp.json``, ``DIR/NAME.best_rigid.json``) replaces the package's
+(:func:`agents.policies.tuned_path`). The rigid jaw closes by that task's millimetres (its ``travel_mm`` is passed)
+past that task's nominal object (R = 27.5 mm by default, ``--jaw-nominal-mm``; :func:`jaw_config`), so that it stops
+where it was tuned to stop: a blind jaw meets every object at the same place. Every policy sees the same seeds
+(``seed * 1000003 + 1000 * cell + episode``).
 
 Drawn on every panel: the **regime boundary** ``phi = 1/2`` (:func:`pneunet_env.physics.regimes.blocked_fraction`
 at ``p_max``; force-controlled on the soft side, position-controlled on the stiff side), the **feasible window**
@@ -38,6 +44,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import time
 from pathlib import Path
 from typing import Any
@@ -48,8 +55,9 @@ from pneunet_env.cli.progress import add_progress_argument
 from pneunet_env.cli.progress import progress as progress_bar
 from pneunet_env.config import EnvConfig, load_config
 
-__all__ = ["ROLES", "map_config", "object_options", "make_entries", "default_jaw_nominal_mm", "jaw_config",
-           "blocked_fraction_grid", "success_map", "summarize", "plot_map", "add_arguments", "run"]
+__all__ = ["ROLES", "map_config", "task_config", "parse_set_options", "object_options", "make_entries",
+           "default_jaw_nominal_mm", "jaw_config", "blocked_fraction_grid", "success_map", "summarize", "plot_map",
+           "add_arguments", "run"]
 
 RIGID_ENV = "RigidGrasp-v0"
 
@@ -70,11 +78,52 @@ PHI_FINE = (64, 40)
 # ---------------------------------------------------------------------------------------------
 
 
-def map_config() -> EnvConfig:
+ConfigSource = EnvConfig | str | os.PathLike | None
+"""What :func:`map_config` and :func:`task_config` start from: ``None`` (the defaults), a config, a YAML path."""
+
+
+def map_config(config: ConfigSource = None, overrides: dict[str, Any] | None = None, *,
+               radius_range_mm: tuple[float, float] = R_RANGE_MM,
+               thickness_ratio: float = THICKNESS_RATIO) -> EnvConfig:
     """The default task's physics and damage rule, objects from ranges (pins override them); the curvature range
-    spans the map's radii (15 to 40 mm), so that the rigid jaw's nominal object (its middle) is hand-scale."""
-    return load_config(use_case=None, damage_rule="hoop_strain", object_curvature_per_m=[25.0, 1000.0 / 15.0],
-                       object_thickness_mm=[3.75, 10.0])
+    spans the map's radii (default 15 to 40 mm), so that the rigid jaw's nominal object (its middle) is hand-scale,
+    and the thickness range their ``H = thickness_ratio R``.
+
+    ``config`` (a YAML path, a config) and then ``overrides`` (flat keys, :func:`load_config`'s) apply on top of the
+    defaults: the actuator, the task (``max_pressure_kpa``, the damage rule, ...), the solver. The map's object keys
+    stay the map's (``use_case`` and ``class_weights`` null, the curvature and thickness ranges above): every object
+    is pinned, and a catalogue class would replace the pinned failure stress. ``ValueError`` names a missing file,
+    an unknown key or a bad value.
+    """
+    r0, r1 = (float(r) for r in radius_range_mm)
+    if not 0 < r0 <= r1:
+        raise ValueError(f"the radius range needs 0 < LO <= HI, got {r0:g} {r1:g}")
+    base = load_config(config, **(overrides or {}))
+    return load_config(base, use_case=None, class_weights=None, object_curvature_per_m=[1e3 / r1, 1e3 / r0],
+                       object_thickness_mm=[thickness_ratio * r0, thickness_ratio * r1])
+
+
+def task_config(config: ConfigSource = None, overrides: dict[str, Any] | None = None) -> EnvConfig:
+    """The task the blind policies were tuned on: the default task (objects from the catalogue), with ``config`` and
+    ``overrides`` on top (as :func:`map_config`'s, here all of them, objects included)."""
+    return load_config(config, **(overrides or {}))
+
+
+def parse_set_options(items) -> dict[str, Any]:
+    """``--set KEY=VALUE`` options -> a dict (:func:`agents.evaluate.parse_overrides`, VALUE read as YAML), with a
+    one-line ``ValueError`` naming the option where VALUE is not valid YAML (``x=[``)."""
+    import yaml
+
+    from agents.evaluate import parse_overrides
+
+    out: dict[str, Any] = {}
+    for item in items or []:
+        try:
+            out.update(parse_overrides([item]))
+        except yaml.YAMLError as exc:
+            why = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+            raise ValueError(f"--set {item!r}: VALUE is not valid YAML ({why})") from None
+    return out
 
 
 def object_options(youngs_modulus_kpa: float, radius_mm: float, density_kg_m3: float = 1000.0,
@@ -89,36 +138,41 @@ def object_options(youngs_modulus_kpa: float, radius_mm: float, density_kg_m3: f
     }
 
 
-def make_entries(config: EnvConfig, blind: str = "best-ramp", rigid: str = "rigid") -> dict[str, Any]:
-    """``{role: PolicyEntry}``: the oracle on ``config``; the blind ramp and the rigid jaw tuned on the default task.
+def make_entries(config: EnvConfig, blind: str = "best-ramp", rigid: str = "rigid",
+                 task: EnvConfig | None = None, config_path: str | os.PathLike | None = None) -> dict[str, Any]:
+    """``{role: PolicyEntry}``: the oracle on ``config``; the blind ramp and the rigid jaw on ``task``, the task they
+    were tuned on (default: the default task, :func:`task_config`), so their targets are fractions of its scales.
 
-    A ``rigid`` spec without ``travel_mm`` gets the default task's jaw travel, so that the jaw closes by the same
+    A ``rigid`` spec without ``travel_mm`` gets the task's jaw travel, so that the jaw closes by the same
     millimetres it was tuned to (the map's config would otherwise give another travel); run it on
-    :func:`jaw_config`'s env so that it also stops at the same place.
+    :func:`jaw_config`'s env so that it also stops at the same place. ``config_path``: the YAML file the configs
+    came from; a schedule shipped beside it wins (:func:`agents.policies.tuned_path`).
     """
     from agents.policies import make_policy, parse_spec
     from pneunet_env.envs.rigid import default_jaw_travel_mm
 
-    default = load_config()
+    task = load_config() if task is None else task
     name, params = parse_spec(rigid)
     if name == "rigid" and "travel_mm" not in params:
-        rigid = f"{rigid}{',' if ':' in rigid else ':'}travel_mm={default_jaw_travel_mm(default):g}"
-    return {"oracle": make_policy("oracle", config), "best-ramp": make_policy(blind, default),
-            "rigid": make_policy(rigid, default)}
+        rigid = f"{rigid}{',' if ':' in rigid else ':'}travel_mm={default_jaw_travel_mm(task):g}"
+    return {"oracle": make_policy("oracle", config),
+            "best-ramp": make_policy(blind, task, config_path=config_path),
+            "rigid": make_policy(rigid, task, config_path=config_path)}
 
 
-def default_jaw_nominal_mm() -> float:
-    """The radius of the default task's nominal object (27.5 mm): the surface the tuned jaw's closure counts from."""
+def default_jaw_nominal_mm(task: EnvConfig | None = None) -> float:
+    """The radius of the nominal object of ``task`` (default: the default task's, 27.5 mm): the surface the tuned
+    jaw's closure counts from."""
     from pneunet_env.envs.rigid import _nominal_curvature_per_m
 
-    return 1e3 / _nominal_curvature_per_m(load_config())
+    return 1e3 / _nominal_curvature_per_m(load_config() if task is None else task)
 
 
-def jaw_config(config: EnvConfig, nominal_radius_mm: float | None = None) -> EnvConfig:
-    """``config`` with its curvature range collapsed onto the jaw's nominal object (default: the default task's,
+def jaw_config(config: EnvConfig, nominal_radius_mm: float | None = None, task: EnvConfig | None = None) -> EnvConfig:
+    """``config`` with its curvature range collapsed onto the jaw's nominal object (default: ``task``'s,
     :func:`default_jaw_nominal_mm`). ``RigidGrasp-v0`` stops the jaw ``c`` mm inside the middle of the config's
     curvature range; the objects themselves are pinned, so the range changes nothing else."""
-    r = default_jaw_nominal_mm() if nominal_radius_mm is None else float(nominal_radius_mm)
+    r = default_jaw_nominal_mm(task) if nominal_radius_mm is None else float(nominal_radius_mm)
     if not r > 0:
         raise ValueError(f"the jaw's nominal radius must be > 0, got {nominal_radius_mm!r}")
     return load_config(config, object_curvature_per_m=[1e3 / r, 1e3 / r])
@@ -184,7 +238,8 @@ def _catalogue_boxes() -> list[dict[str, Any]]:
 def success_map(E_grid, R_grid, density_kg_m3: float = 1000.0, failure_strain: float = 0.3, episodes: int = 1,
                 seed: int = 0, progress: bool | None = None, densities=None, density_radius_mm: float = 25.0,
                 blind: str = "best-ramp", rigid: str = "rigid", config: EnvConfig | None = None,
-                thickness_ratio: float = THICKNESS_RATIO, jaw_nominal_mm: float | None = None) -> dict[str, Any]:
+                thickness_ratio: float = THICKNESS_RATIO, jaw_nominal_mm: float | None = None,
+                task: EnvConfig | None = None, config_path: str | os.PathLike | None = None) -> dict[str, Any]:
     """Grasp success of the oracle, the blind ramp and the rigid jaw over ``E_grid`` (kPa) x ``R_grid`` (mm).
 
     Args:
@@ -195,7 +250,10 @@ def success_map(E_grid, R_grid, density_kg_m3: float = 1000.0, failure_strain: f
         densities: if given (two or more), also a row over ``E_grid`` x ``densities`` at ``density_radius_mm``.
         blind, rigid: the specs of the blind ramp and the jaw (:func:`agents.policies.make_policy`).
         config: the env's config (default :func:`map_config`).
-        jaw_nominal_mm: the radius the rigid jaw's closure counts from (default: the default task's, 27.5 mm).
+        jaw_nominal_mm: the radius the rigid jaw's closure counts from (default: ``task``'s nominal object; the
+            default task's is 27.5 mm).
+        task: the config the blind policies were tuned on (default: the default task; :func:`make_entries`).
+        config_path: the YAML file the configs came from: a schedule shipped beside it wins.
 
     Returns a JSON-able dict: ``youngs_modulus_kpa``, ``radius_mm`` (the grids); ``policies`` ``{role: {spec,
     label, env_id, blind, success, damage, slip, solver_failures}}`` with ``(nR, nE)`` rate arrays as nested lists;
@@ -212,8 +270,8 @@ def success_map(E_grid, R_grid, density_kg_m3: float = 1000.0, failure_strain: f
     dens = sorted(float(d) for d in densities) if densities is not None and len(densities) > 1 else None
     config = map_config() if config is None else config
     t0 = time.perf_counter()
-    entries = make_entries(config, blind, rigid)
-    rigid_config = jaw_config(config, jaw_nominal_mm)
+    entries = make_entries(config, blind, rigid, task, config_path)
+    rigid_config = jaw_config(config, jaw_nominal_mm, task)
     envs = {role: entry.make_env(rigid_config if entry.env_id == RIGID_ENV else config)
             for role, entry in entries.items()}
     cells = [object_options(e, r, density_kg_m3, failure_strain, thickness_ratio) for r in R for e in E]
@@ -275,6 +333,7 @@ def success_map(E_grid, R_grid, density_kg_m3: float = 1000.0, failure_strain: f
     result["summary"] = summarize(result)
     result["elapsed_s"] = time.perf_counter() - t0
     result["config"] = config.to_dict()
+    result["config_path"] = None if config_path is None else str(config_path)
     return result
 
 
@@ -525,12 +584,21 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--failure-strain", type=float, default=0.3, help="object failure strain (default 0.3); "
                                                                           "failure stress 3 eps_f mu_obj")
     parser.add_argument("--blind", default="best-ramp", metavar="SPEC",
-                        help="the blind pressure schedule (default best-ramp: agents/best_ramp.json)")
+                        help="the blind pressure schedule (default best-ramp: agents/best_ramp.json, or the one "
+                             "beside --config)")
     parser.add_argument("--rigid", default="rigid", metavar="SPEC",
-                        help="the rigid jaw (default rigid: agents/best_rigid.json, at the default task's travel)")
+                        help="the rigid jaw (default rigid: agents/best_rigid.json, or the one beside --config; at "
+                             "the task's travel)")
     parser.add_argument("--jaw-nominal-mm", type=float, default=None, metavar="R",
                         help="radius the rigid jaw's closure counts from (default: the default task's nominal "
                              "object, 27.5 mm)")
+    parser.add_argument("--config", default=None, metavar="PATH",
+                        help="environment config YAML, on top of the map's defaults (the objects stay the map's); "
+                             "best-ramp and rigid load DIR/NAME.best_ramp.json and DIR/NAME.best_rigid.json where "
+                             "they lie beside DIR/NAME.yaml")
+    parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                        help="override an environment config key, on top of --config (repeatable; VALUE is YAML), "
+                             "e.g. --set top_thickness_mm=1.5; a schedule beside --config still applies")
     parser.add_argument("--no-plot", action="store_true", help="skip map.png")
     add_progress_argument(parser)
 
@@ -545,11 +613,15 @@ def run(args: argparse.Namespace) -> int:
             raise ValueError("--e-range and --r-range need 0 < LO <= HI")
         if any(d <= 0 for d in args.density) or not args.failure_strain > 0:
             raise ValueError("--density and --failure-strain must be > 0")
+        overrides = parse_set_options(args.overrides)
+        config = map_config(args.config, overrides, radius_range_mm=(r0, r1))
+        task = task_config(args.config, overrides)
         E = np.logspace(math.log10(e0), math.log10(e1), ne) if ne > 1 else np.array([math.sqrt(e0 * e1)])
         R = np.linspace(r0, r1, nr) if nr > 1 else np.array([0.5 * (r0 + r1)])
         result = success_map(E, R, args.density[0], args.failure_strain, args.episodes, args.seed, args.progress,
                              densities=args.density, density_radius_mm=args.density_radius, blind=args.blind,
-                             rigid=args.rigid, jaw_nominal_mm=args.jaw_nominal_mm)
+                             rigid=args.rigid, config=config, jaw_nominal_mm=args.jaw_nominal_mm, task=task,
+                             config_path=args.config)
     except ValueError as exc:
         raise SystemExit(f"pneunet-grasp map: {exc}") from None
     out = Path(args.out)

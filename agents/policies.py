@@ -64,9 +64,23 @@ BEST_RAMP_PAPER_PATH = AGENTS_DIR / "best_ramp_paper.json"
 BEST_RIGID_PAPER_PATH = AGENTS_DIR / "best_rigid_paper.json"
 
 
-def tuned_path(config: EnvConfig, gripper: str = "pneunet") -> Path:
+def _beside_path(config_path: str | os.PathLike, gripper: str = "pneunet") -> Path:
+    """Where a schedule tuned for the config file ``DIR/NAME.yaml`` is shipped: ``DIR/NAME.best_ramp.json``
+    (``DIR/NAME.best_rigid.json`` for the rigid gripper), whether or not it exists."""
+    path = Path(config_path)
+    return path.with_name(f"{path.stem}.best_{'rigid' if gripper == 'rigid' else 'ramp'}.json")
+
+
+def tuned_path(config: EnvConfig, gripper: str = "pneunet", *, config_path: str | os.PathLike | None = None) -> Path:
     """The tuned schedule for the task ``config`` describes: the default task's (objects from the catalogue) or the
-    paper's (objects from ranges). Each was searched on its own task; a blind schedule is tuned to a distribution."""
+    paper's (objects from ranges). Each was searched on its own task; a blind schedule is tuned to a distribution.
+
+    ``config_path``: the YAML file ``config`` was loaded from, if any. A schedule shipped beside it
+    (:func:`_beside_path`: ``DIR/NAME.best_ramp.json`` or ``DIR/NAME.best_rigid.json``) wins when it exists, whatever
+    overrides were applied on top of the file; else the package's own, as above.
+    """
+    if config_path is not None and (beside := _beside_path(config_path, gripper)).is_file():
+        return beside
     paper = not config.objects.from_catalogue
     if gripper == "rigid":
         return BEST_RIGID_PAPER_PATH if paper else BEST_RIGID_PATH
@@ -166,12 +180,17 @@ def _step(spec, params, config):
     return PolicyEntry(spec, f"step to {t * config.task.max_pressure_kpa:.3g} kPa", StepPolicy(t, config))
 
 
-def _best_ramp(spec, params, config):
-    path = Path(params.pop("path", tuned_path(config)))
+def _best_ramp(spec, params, config, config_path=None):
+    path = Path(params.pop("path", tuned_path(config, config_path=config_path)))
     _check_empty(spec, params, "path")
     pol = load_ramp(path, config)
-    label = f"best-ramp ({_describe(pol, config.task.max_pressure_kpa, 'kPa')})"
+    label = f"best-ramp ({_describe(pol, config.task.max_pressure_kpa, 'kPa')}{_source(path)})"
     return PolicyEntry(spec, label, pol)
+
+
+def _source(path: Path) -> str:
+    """``"; from NAME.best_ramp.json"`` for a schedule outside the package (a config's own, or ``path=``)."""
+    return "" if path.resolve().parent == AGENTS_DIR else f"; from {path.name}"
 
 
 def _describe(pol, full_scale: float, unit: str) -> str:
@@ -188,22 +207,23 @@ def _oracle(spec, params, config):
     return PolicyEntry(spec, "oracle (knows k~; best constant pressure)", Oracle(config, res), blind=False)
 
 
-def _rigid(spec, params, config):
+def _rigid(spec, params, config, config_path=None):
     from pneunet_env.envs.rigid import default_jaw_travel_mm
 
     travel = _float(spec, "travel_mm", params.pop("travel_mm")) if "travel_mm" in params else None
     env_kwargs = {} if travel is None else {"jaw_travel_mm": travel}
     full = default_jaw_travel_mm(config) if travel is None else travel
+    path = None
     if "target" in params or "target_mm" in params:
         t = _target(spec, params, full, "target_mm", 0.5)
         n = _int(spec, "steps", params.pop("steps", "20"))
         pol = LinearRamp(t, n, config)
         _check_empty(spec, params, "target, target_mm, steps, travel_mm, path")
     else:
-        path = Path(params.pop("path", tuned_path(config, "rigid")))
+        path = Path(params.pop("path", tuned_path(config, "rigid", config_path=config_path)))
         _check_empty(spec, params, "target, target_mm, steps, travel_mm, path")
         pol = _load_rigid(path, config, full)
-    label = f"rigid gripper ({_describe(pol, full, 'mm')})"
+    label = f"rigid gripper ({_describe(pol, full, 'mm')}{'' if path is None else _source(path)})"
     return PolicyEntry(spec, label, pol, env_id=RIGID_ENV, command="jaw", env_kwargs=env_kwargs)
 
 
@@ -227,9 +247,18 @@ REGISTRY: dict[str, Callable[[str, dict[str, str], EnvConfig], PolicyEntry]] = {
 """Scripted policy names -> factories ``(spec, params, config) -> PolicyEntry``."""
 
 
-def make_policy(spec: str, config: EnvConfig | None = None) -> PolicyEntry:
+_TUNED = ("best-ramp", "rigid")
+"""The registry's tuned schedules: their factories take ``config_path`` (:func:`tuned_path`)."""
+
+
+def make_policy(spec: str, config: EnvConfig | None = None, *,
+                config_path: str | os.PathLike | None = None) -> PolicyEntry:
     """The policy named by ``spec`` (a registry name with optional parameters, or a ``*.zip`` SB3 model, optionally
     ``PATH.zip:vecnormalize=STATS,action=setpoint``; a model is code: load only models you trust).
+
+    ``config_path``: the YAML file ``config`` came from, if any: ``best-ramp`` and ``rigid`` (without ``path=``)
+    then load the schedule shipped beside it, ``DIR/NAME.best_ramp.json`` or ``DIR/NAME.best_rigid.json``, where
+    it exists (:func:`tuned_path`).
 
     Raises:
         ValueError: an unknown name, a bad parameter, or a missing model file (named).
@@ -252,6 +281,8 @@ def make_policy(spec: str, config: EnvConfig | None = None) -> PolicyEntry:
     name, params = parse_spec(spec)
     if name not in REGISTRY:
         raise ValueError(f"unknown policy {name!r}; valid: {', '.join(REGISTRY)} or a path to an SB3 model .zip")
+    if config_path is not None and name in _TUNED:
+        return REGISTRY[name](spec, dict(params), config, config_path=config_path)
     return REGISTRY[name](spec, dict(params), config)
 
 

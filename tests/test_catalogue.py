@@ -108,6 +108,29 @@ def test_bread_is_in_the_catalogue_with_sources_and_out_of_the_model():
         assert "bread" in cases[name].unreachable and "bread" not in cases[name].weights, name
 
 
+def test_apple_holds_flesh_specimen_values_not_the_apparent_whole_fruit_modulus():
+    # the modulus field is the flesh's Young's modulus from excised specimens (Chakespari et al. 2010: 0.81 MPa
+    # initial tangent; Shahabasi 1979: up to 3.28 MPa, Jonathan), not ASAE S368's apparent modulus of a die pressed
+    # into the whole fruit (Vursavus et al. 1999: up to 4.88 MPa), which is listed as not used
+    apple = CATALOGUE["apple"]
+    assert apple.youngs_modulus_kpa == pytest.approx((810.0, 3280.0))
+    assert apple.failure_strain == pytest.approx((0.11, 0.312))  # flesh specimens in compression, both studies
+    assert apple.failure_stress_kpa == pytest.approx((235.0, 444.0))
+    used = [s for s in apple.sources if not s.startswith("[not used")]
+    assert any("Shahabasi" in s for s in used) and any("Chakespari" in s for s in used)
+    assert not any("Vursavus" in s or "Turkish Journal" in s for s in used)
+
+
+def test_pva_failure_is_measured_on_a_phantom_cryogel():
+    # Mori, Tokura and Yoshikawa (1997): 8.6 wt% PVA, two freeze-thaw cycles, 0.6 MPa and 130 % in tension; the
+    # former 3-12 (derived from anisotropic tough gels) is gone
+    pva = CATALOGUE["pva_cryogel"]
+    assert pva.failure_strain[0] <= 1.3 <= pva.failure_strain[1] and pva.failure_strain[1] < 2.0
+    assert pva.failure_stress_kpa[0] <= 600.0 <= pva.failure_stress_kpa[1]
+    assert any("doi:10.1023/A:1018586307534" in s for s in pva.sources)
+    assert not any("c2sm26102b" in s for s in pva.sources)
+
+
 def test_kitchen_weights_are_the_ones_fixed_before_any_result():
     # the default use case's weights were fixed before any success rate was computed (docs/env.md): adding a class
     # to the catalogue never changes them

@@ -27,11 +27,15 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "figures": ("pneunet_env.paper.command", "regenerate the paper's figures (PNG + CSV) and check its statements"),
     "bench speed": ("pneunet_env.bench.speed", "speed benchmark against CartPole (table, JSON, PNG)"),
     "bench solvers": ("pneunet_env.bench.solvers", "solver study: speed vs accuracy, stability map"),
+    "bench design": ("agents.bench_design", "what a design study costs: one design evaluation, and the batched "
+                     "search against the episode loop"),
     "bench render": ("pneunet_env.bench.render_speed", "rgb_array frames/s (step + render) against CartPole"),
     "evaluate": ("agents.evaluate", "evaluate policies over a stiffness grid (table, JSON, PNGs)"),
     "train": ("agents.train", "train an SB3 agent from a YAML config"),
     "train-skrl": ("agents.train_skrl", "train skrl's PPO on the torch backend, on its device (extra: skrl)"),
     "search": ("agents.search", "tune the blind best-ramp (or rigid) schedule; --sensitivity runs the threshold study"),
+    "design": ("agents.design", "design the actuator: which walls and elastomer let one blind ramp hold a use case "
+               "(Optuna; extra: design)"),
     "map": ("agents.maps", "chart success over object modulus x radius: oracle, best blind ramp, rigid jaw, "
             "with the regime boundary"),
 }

@@ -20,7 +20,11 @@ the bin), pins it with ``reset(options={"object_stiffness": k})``, and runs each
 
 ``--targets-kpa`` adds plain linear ramps (to each target over ``--ramp-steps`` steps). Everything else is the
 environment's config: the paper's object size, water-like density, the damage and slip thresholds of
-``docs/env.md``. ``--json`` saves every episode. ``pneunet-grasp evaluate`` makes the plots.
+``docs/env.md``; ``--config PATH`` and ``--set KEY=VALUE`` (repeatable, VALUE is YAML, on top of ``--config`` and of
+the paper task's settings) change it. A schedule shipped beside the config file, ``DIR/NAME.best_ramp.json``
+(``DIR/NAME.best_rigid.json`` for ``rigid``) beside ``DIR/NAME.yaml``, replaces the package's, with or without
+``--set`` (:func:`agents.policies.tuned_path`). ``--json`` saves every episode. ``pneunet-grasp evaluate`` makes
+the plots.
 """
 
 from __future__ import annotations
@@ -54,13 +58,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--bins", type=int, default=4, help="log-spaced stiffness bins (default 4: decades)")
     parser.add_argument("--episodes", type=int, default=10, help="episodes per bin and policy (default 10)")
     parser.add_argument("--seed", type=int, default=0, help="base seed (default 0)")
-    parser.add_argument("--config", default=None, help="environment config YAML (default: built-in defaults)")
+    parser.add_argument("--config", default=None, metavar="PATH",
+                        help="environment config YAML (default: built-in defaults); best-ramp and rigid load "
+                             "DIR/NAME.best_ramp.json and DIR/NAME.best_rigid.json where they lie beside DIR/NAME.yaml")
+    parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
+                        help="override an environment config key, on top of --config (repeatable; VALUE is YAML), "
+                             "e.g. --set max_pressure_kpa=40; a schedule beside --config still applies")
     parser.add_argument("--json", type=Path, default=None, help="also write the results as JSON to this path")
     add_progress_argument(parser)
 
 
 def run(args: argparse.Namespace) -> int:
     from agents.evaluate import SOFT_MAX, STIFF_MIN, run_episode
+    from agents.maps import parse_set_options
     from agents.oracle import feasible_stiffness
     from agents.policies import make_policy
     from pneunet_env import PAPER_TASK
@@ -72,13 +82,14 @@ def run(args: argparse.Namespace) -> int:
     if not 0.0 < args.k_min < args.k_max:
         raise SystemExit(f"need 0 < --k-min < --k-max, got {args.k_min} and {args.k_max}")
     try:
-        cfg = load_config(args.config, **(PAPER_TASK if args.task == "paper" else {}))
+        overrides = parse_set_options(args.overrides)
+        cfg = load_config(args.config, **{**(PAPER_TASK if args.task == "paper" else {}), **overrides})
         specs = list(args.policy or DEFAULT_POLICIES)
         for t in args.targets_kpa:
             if not 0.0 <= t <= cfg.task.max_pressure_kpa:
                 raise ValueError(f"--targets-kpa: {t} is outside [0, max_pressure_kpa = {cfg.task.max_pressure_kpa}]")
             specs.append(f"ramp:target_kpa={t:g},steps={args.ramp_steps}")
-        entries = [make_policy(s, cfg) for s in specs]
+        entries = [make_policy(s, cfg, config_path=args.config) for s in specs]
     except ValueError as exc:
         raise SystemExit(f"pneunet-grasp demo: {exc}") from None
     if args.task == "default":

@@ -1,0 +1,158 @@
+"""The actuator design study (agents.design): scores, the Optuna study (default storage, resume, two workers), and
+every new input's bad values."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+optuna = pytest.importorskip("optuna")
+
+from agents.batch import episode_seeds  # noqa: E402
+from agents.design import (  # noqa: E402
+    DESIGN_SPACE,
+    P_TILDE_MAX,
+    _pareto,
+    design_config,
+    elastomers,
+    evaluate_design,
+    main,
+    parse_bounds,
+    perturbed_config,
+    reference_regimes,
+    table1_design,
+)
+from pneunet_env import load_config  # noqa: E402
+
+SMALL = ["--objects", "8", "--held-out", "8", "--top", "1", "--quiet",
+         "--bound", "top_thickness_mm=1.5:2.5", "--bound", "chamber_height_mm=4:6"]
+
+
+def test_every_elastomer_has_a_source_and_a_gent_limit():
+    table = elastomers()
+    assert "table1" in table and len(table) >= 4
+    for e in table.values():
+        assert e.shear_modulus_kpa > 0 and e.gent_limit > 0 and len(e.source) > 10, e
+
+
+def test_design_space_bounds_are_sourced():
+    for b in DESIGN_SPACE:
+        assert 0 < b.low < b.high and b.source
+
+
+def test_design_config_scales_the_pressure_with_the_modulus():
+    soft = design_config({"shear_modulus_kpa": 20.0, "gent_limit": 10.0})
+    assert soft.task.max_pressure_kpa == pytest.approx(P_TILDE_MAX * 20.0)
+    assert soft.pressure_max == pytest.approx(P_TILDE_MAX)
+    assert soft.pressure_step == pytest.approx(0.06)
+    t1 = design_config(table1_design())
+    assert t1.task.max_pressure_kpa == 60.0 and t1.task.max_pressure_step_kpa == 3.0
+    assert t1.actuator == load_config().actuator
+    p = perturbed_config(t1, [1.1, 0.9, 1.0, 1.2])
+    assert p.actuator.top_thickness_mm == pytest.approx(2.75) and p.actuator.shear_modulus_kpa == pytest.approx(60)
+    assert p.task.max_pressure_kpa == 60.0  # the schedule's kPa are the nominal design's
+
+
+def test_table1_design_scores_what_the_shipped_search_found():
+    # the batched score of Table 1's actuator on the search's 200 objects is agents/best_ramp.json's, to the object
+    seeds = episode_seeds(200)
+    s = evaluate_design(table1_design(), seeds, reference_regimes(seeds))
+    shipped = json.loads(open("agents/best_ramp.json").read())["score"]
+    assert s.blind["all"] == shipped["success_rate"]
+    assert s.blind["force"] == pytest.approx(shipped["success_rate_force"])
+    assert (s.objects["force"], s.objects["position"]) == (shipped["objects_force"], shipped["objects_position"])
+    assert s.oracle["all"] >= s.blind["all"]
+    assert s.window_kpa[0] <= s.pressure_kpa <= s.window_kpa[1]
+
+
+def test_pareto_front():
+    pts = np.array([[1, 0], [0, 1], [0.5, 0.5], [0.4, 0.4], [1, 0]])
+    assert _pareto(pts).tolist() == [True, True, True, False, True]
+
+
+def test_study_with_the_embedded_storage_then_resumed(tmp_path, capsys):
+    out = tmp_path / "kitchen"
+    assert main(["--trials", "2", "--out", str(out), *SMALL]) == 0
+    res = json.loads((out / "design.json").read_text())
+    assert res["trials"] == 2 and (out / "study.db").is_file()
+    labels = [d["label"] for d in res["designs"]]
+    assert labels == ["table1", "rank-1"]
+    assert res["designs"][0]["params"]["elastomer"] == "table1"
+    for name in ("pareto.png", "curves.png", "importance.png", "designs/rank-1.yaml", "designs/rank-1.best_ramp.json"):
+        assert (out / name).is_file(), name
+    cfg = load_config(out / "designs" / "rank-1.yaml")  # an env config gym.make takes
+    assert cfg.task.max_pressure_kpa == pytest.approx(P_TILDE_MAX * cfg.actuator.shear_modulus_kpa)
+    first = json.loads((out / "design.json").read_text())["all"]
+    # resumed: the two designs kept, two more run
+    assert main(["--trials", "4", "--out", str(out), *SMALL]) == 0
+    res = json.loads((out / "design.json").read_text())
+    assert res["trials"] == 4
+    assert [a["params"] for a in res["all"][:2]] == [a["params"] for a in first]
+    # a study is resumed only with its own settings
+    with pytest.raises(SystemExit, match="other settings"):
+        main(["--trials", "5", "--out", str(out), *SMALL[:-4]])
+
+
+def test_journal_storage_and_export(tmp_path):
+    out = tmp_path / "j"
+    exp = tmp_path / "designed.yaml"
+    assert main(["--trials", "2", "--out", str(out), "--storage", f"journal:{tmp_path / 'j.log'}", "--export",
+                 str(exp), *SMALL]) == 0
+    assert (tmp_path / "j.log").is_file() and not (out / "study.db").exists()
+    assert exp.is_file() and exp.with_suffix(".best_ramp.json").is_file()
+
+
+@pytest.mark.slow
+def test_two_workers_share_one_study(tmp_path):
+    out = tmp_path / "two"
+    assert main(["--trials", "6", "--jobs", "2", "--out", str(out), *SMALL]) == 0
+    study = optuna.load_study(study_name="design-kitchen", storage=f"sqlite:///{out / 'study.db'}")
+    done = [t for t in study.trials if t.state.is_finished()]
+    assert len(done) >= 6
+    assert len({t.user_attrs["worker"] for t in done if "worker" in t.user_attrs}) == 2
+
+
+@pytest.mark.parametrize("argv, match", [
+    (["--trials", "0"], "trials"),
+    (["--trials", "-3"], "trials"),
+    (["--jobs", "0"], "jobs"),
+    (["--objects", "0"], "objects"),
+    (["--held-out", "0"], "held_out"),
+    (["--seed", "-1"], "seed"),
+    (["--use-case", "garage"], "garage"),
+    (["--class-weights", "apple"], "class-weights"),
+    (["--class-weights", "apple=heavy"], "apple"),
+    (["--class-weights", "plutonium=1"], "plutonium"),
+    (["--storage", "nonsense"], "storage"),
+    (["--storage", "journal:"], "journal"),
+    (["--storage", "ftp://x/y"], "storage"),
+    (["--bound", "top_thickness_mm"], "KEY=LOW:HIGH"),
+    (["--bound", "colour=1:2"], "colour"),
+    (["--bound", "top_thickness_mm=3:1"], "LOW < HIGH"),
+    (["--bound", "top_thickness_mm=a:2"], "numbers"),
+    (["--bound", "top_thickness_mm=0.1:2"], "manufacturable"),
+    (["--bound", "top_thickness_mm=nan:2"], "finite"),
+    (["--export", "x.txt"], "yaml"),
+    (["--worker", "--report"], "exclude"),
+])
+def test_bad_values_are_refused_before_any_work(tmp_path, argv, match):
+    with pytest.raises(SystemExit, match=match):
+        main(["--out", str(tmp_path / "o"), "--quiet", *argv])
+    assert not (tmp_path / "o" / "design.json").exists()
+
+
+def test_parse_bounds():
+    assert parse_bounds(["width_mm=4:6"]) == {"width_mm": (4.0, 6.0)}
+    assert parse_bounds([]) == {}
+
+
+def test_bench_design_prints_figures(tmp_path, capsys):
+    from agents.bench_design import main as bench
+
+    assert bench(["--objects", "4", "--repeats", "1", "--no-old", "--json", str(tmp_path / "b.json")]) == 0
+    out = capsys.readouterr().out
+    assert "one design evaluation" in out and "CartPoleVectorEnv" in out
+    res = json.loads((tmp_path / "b.json").read_text())
+    assert res["evaluation"]["median_s"] > 0 and res["search"]["batched, as the command runs"]["seconds"] > 0
