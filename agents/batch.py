@@ -26,10 +26,10 @@ from typing import Any
 
 import numpy as np
 
-from pneunet_env.config import EnvConfig
+from pneunet_env.config import EnvConfig, load_config
 
-__all__ = ["BatchOutcome", "RampGrid", "run_batch", "ramp_actions", "ramp_grid", "duration_invariance",
-           "episode_seeds", "HELD_OUT_SEED"]
+__all__ = ["BatchOutcome", "RampGrid", "run_batch", "run_policy", "batchable", "ramp_actions", "ramp_grid",
+           "duration_invariance", "episode_seeds", "HELD_OUT_SEED"]
 
 HELD_OUT_SEED = 1_000_000_000
 """Offset of held-out objects' seeds (``agents.evaluate.HELD_OUT_SEED``): disjoint from the search's."""
@@ -55,6 +55,7 @@ class BatchOutcome:
         returns: the episode's summed reward.
         steps: its length.
         solver_failed: whether any of its steps was flagged unconverged.
+        peak_traction_kpa: the largest contact traction of its steps (kPa).
         stiffness, curvature: each object's ``k~`` and ``w kappa_obj`` (``(objects,)``, for this actuator).
         class_id: each object's catalogue class code (``-1``: drawn from ranges); names in ``class_names``.
         shear_modulus_kpa, radius_mm: the object's modulus and outer radius (``1 / kappa_obj``).
@@ -66,6 +67,7 @@ class BatchOutcome:
     returns: np.ndarray
     steps: np.ndarray
     solver_failed: np.ndarray
+    peak_traction_kpa: np.ndarray
     stiffness: np.ndarray
     curvature: np.ndarray
     class_id: np.ndarray
@@ -78,16 +80,33 @@ class BatchOutcome:
         """Each object's class name (``"ranges"`` for one drawn from ranges)."""
         return [self.class_names[c] if c >= 0 else "ranges" for c in self.class_id]
 
+    def episodes(self, copy: int = 0) -> list[dict[str, Any]]:
+        """Copy ``copy``'s episodes as :func:`agents.evaluate.run_episode` reports them, one dict per object."""
+        names = self.classes
+        return [{"stiffness": float(self.stiffness[m]), "shear_modulus_kpa": float(self.shear_modulus_kpa[m]),
+                 "curvature": float(self.curvature[m]), "object_class": names[m],
+                 "success": bool(self.success[copy, m]), "damaged": bool(self.damaged[copy, m]),
+                 "dropped": bool(self.dropped[copy, m]), "return": float(self.returns[copy, m]),
+                 "steps": int(self.steps[copy, m]), "peak_traction_kpa": float(self.peak_traction_kpa[copy, m]),
+                 "solver_failed": bool(self.solver_failed[copy, m])} for m in range(self.stiffness.size)]
+
+
+_INFO_KEYS = ("damaged", "dropped", "solver_failed", "contact_force_kpa",  # each step's
+              # the reset's (the oracle's plan): the object's constants
+              "object_stiffness", "object_curvature", "failure_traction_kpa", "crush_indentation_mm",
+              "grip_traction_kpa")
+
 
 def _vector_env(config: EnvConfig, n: int, backend: str, parallel: bool | None):
     from pneunet_env.envs.grasp_vector import PneuNetGraspVectorEnv
 
     return PneuNetGraspVectorEnv(n, config=config, backend=backend, parallel=parallel,
-                                 info_keys=("damaged", "dropped", "solver_failed"))
+                                 info_keys=_INFO_KEYS)
 
 
 def run_batch(config: EnvConfig, seeds: Sequence[int], act: Callable[[np.ndarray, Any], np.ndarray], copies: int = 1,
-              backend: str = "auto", parallel: bool | None = None) -> BatchOutcome:
+              backend: str = "auto", parallel: bool | None = None,
+              begin: Callable[[dict[str, Any]], None] | None = None) -> BatchOutcome:
     """Run ``copies`` copies of every object of ``seeds`` together; sub-env ``c * M + m`` is copy ``c`` of object ``m``.
 
     Args:
@@ -98,6 +117,8 @@ def run_batch(config: EnvConfig, seeds: Sequence[int], act: Callable[[np.ndarray
             memory: a stateless policy of the observation, as the blind schedules are.
         copies: how many times each object is run (``act`` tells the copies apart by index).
         backend, parallel: the vector env's (``"auto"``: numba's fused step where installed).
+        begin: called once with the reset's info (the vector info: each object's constants as ``(N,)`` arrays),
+            before the first step: what a policy that knows the object (the oracle) reads.
     """
     seeds = np.asarray(seeds, dtype=np.int64)
     if seeds.ndim != 1 or seeds.size < 1:
@@ -108,7 +129,9 @@ def run_batch(config: EnvConfig, seeds: Sequence[int], act: Callable[[np.ndarray
     n = m * c
     env = _vector_env(config, n, backend, parallel)
     try:
-        obs, _ = env.reset(seed=np.tile(seeds, c).tolist())
+        obs, reset_info = env.reset(seed=np.tile(seeds, c).tolist())
+        if begin is not None:
+            begin(reset_info)
         obj = env.objects
         horizon = config.task.squeeze_steps + config.task.hold_steps
         done = np.zeros(n, bool)
@@ -117,20 +140,25 @@ def run_batch(config: EnvConfig, seeds: Sequence[int], act: Callable[[np.ndarray
         dropped = np.zeros(n, bool)
         failed = np.zeros(n, bool)
         returns = np.zeros(n)
+        peak = np.zeros(n)
         steps = np.zeros(n, np.int64)
         for _ in range(horizon):
             obs, reward, terminated, truncated, info = env.step(act(obs, env))
             live = ~done
             returns[live] += reward[live]
             steps[live] += 1
-            failed |= live & info["solver_failed"]
             ended = live & (terminated | truncated)
-            if ended.any():
+            force, fail = info["contact_force_kpa"], info["solver_failed"]
+            if ended.any():  # an ended sub-env's step info is in final_info (info holds its reset's)
                 fi = info["final_info"]
+                force = np.where(ended, fi["contact_force_kpa"], force)
+                fail = np.where(ended, fi["solver_failed"], fail)
                 success[ended] = fi["is_success"][ended]
                 damaged[ended] = fi["damaged"][ended]
                 dropped[ended] = fi["dropped"][ended]
                 done |= ended
+            failed |= live & fail
+            peak = np.where(live, np.maximum(peak, force), peak)
             if done.all():
                 break
         if not done.all():  # pragma: no cover - the task always ends by squeeze + hold steps
@@ -142,6 +170,7 @@ def run_batch(config: EnvConfig, seeds: Sequence[int], act: Callable[[np.ndarray
     return BatchOutcome(
         success=success.reshape(shape), damaged=damaged.reshape(shape), dropped=dropped.reshape(shape),
         returns=returns.reshape(shape), steps=steps.reshape(shape), solver_failed=failed.reshape(shape),
+        peak_traction_kpa=peak.reshape(shape),
         stiffness=np.asarray(obj.stiffness[:m], float), curvature=np.asarray(obj.curvature[:m], float),
         class_id=np.asarray(obj.class_id[:m], np.int64), class_names=tuple(names),
         shear_modulus_kpa=np.asarray(obj.shear_modulus_kpa[:m], float),
@@ -239,3 +268,41 @@ def duration_invariance(config: EnvConfig, seeds: Sequence[int], targets: Sequen
         differ.append(int((~eq).sum()))
     return {"durations": [int(n) for n in durations], "identical": same, "differing_pairs": differ,
             "pairs": int(ref.success.size)}
+
+
+def batchable(entry) -> bool:
+    """Whether a policy entry (:class:`agents.policies.PolicyEntry`) runs batched: a pneu-net policy that maps the
+    observation alone to the action (a ramp, a step, a trained model) or reads only the object at reset (the
+    oracle). The rigid jaw has no vector env: it runs episode by episode."""
+    from agents.oracle import Oracle
+    from agents.policies import PNEUNET_ENV, SB3Policy
+    from agents.scripted import LinearRamp, StepPolicy
+
+    return entry.env_id == PNEUNET_ENV and isinstance(entry.policy, (LinearRamp, StepPolicy, Oracle, SB3Policy))
+
+
+def run_policy(entry, config: EnvConfig, seeds: Sequence[int], backend: str = "auto") -> BatchOutcome:
+    """One episode of ``entry``'s policy per object of ``seeds``, batched (:func:`batchable` entries only); the
+    env is the entry's (its ``env_kwargs``, e.g. a model's ``observe_volume``, on top of ``config``)."""
+    from agents.oracle import Oracle
+
+    if not batchable(entry):
+        raise ValueError(f"policy {entry.name!r} does not run batched (the rigid jaw has no vector env)")
+    cfg = load_config(config, **entry.env_kwargs) if entry.env_kwargs else config
+    pol = entry.policy
+    if not isinstance(pol, Oracle):
+        return run_batch(cfg, seeds, lambda obs, env: pol(obs), backend=backend)
+    targets = np.zeros(len(seeds))
+    keys = ("object_stiffness", "object_curvature", "failure_traction_kpa", "crush_indentation_mm",
+            "grip_traction_kpa")
+
+    def begin(info):  # the oracle's plan for each object, from the reset's info (as run_episode gives it)
+        for i in range(len(seeds)):
+            pol.begin_episode({k: info[k][i] for k in keys})
+            targets[i] = pol.plan["target"]
+
+    def act(obs, env):  # Oracle.__call__, one target per sub-env
+        p = np.asarray(obs, dtype=np.float64)[..., 0]
+        return np.clip((targets - p) / pol.step_fraction, -1.0, 1.0)[..., None].astype(np.float32)
+
+    return run_batch(cfg, seeds, act, backend=backend, begin=begin)

@@ -195,6 +195,7 @@ def _outcome(rs) -> str:
 
 def _run_distribution(args: argparse.Namespace, cfg, entries) -> int:
     """The default task: objects drawn by the env; success by regime and by class, policy by policy."""
+    from agents.batch import batchable, run_policy
     from agents.evaluate import HELD_OUT_SEED, object_regimes, run_episode
     from pneunet_env.physics.regimes import REGIMES
 
@@ -205,6 +206,10 @@ def _run_distribution(args: argparse.Namespace, cfg, entries) -> int:
     bar = progress(total=len(entries) * len(seeds), desc="demo", unit="episode", enabled=args.progress)
     results: dict[str, list[dict]] = {}
     for entry in entries:
+        if batchable(entry):  # every object at once, one vector env run (the single env's outcomes)
+            results[entry.name] = run_policy(entry, cfg, seeds).episodes()
+            bar.update(len(seeds))
+            continue
         env = entry.make_env(cfg)
         rs = []
         for s in seeds:

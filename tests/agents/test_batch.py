@@ -17,8 +17,8 @@ CFG = load_config()
 
 
 def test_ramp_grid_is_the_single_env_object_for_object():
-    seeds = episode_seeds(12)
-    targets = [0.3, 0.565, 0.9]
+    seeds = episode_seeds(6)
+    targets = [0.3, 0.565]
     g = ramp_grid(CFG, seeds, targets, 20)
     env = gym.make("PneuNetGrasp-v0", config=CFG)
     for i, t in enumerate(targets):
@@ -78,3 +78,24 @@ def test_ramp_grid_refuses_bad_targets(bad):
 def test_episode_seeds_refuses_bad_values(n, seed):
     with pytest.raises(ValueError):
         episode_seeds(n, seed)
+
+
+@pytest.mark.parametrize("spec", ["best-ramp", "oracle", "step:target_kpa=20",
+                                  pytest.param("agents/models/ppo_kitchen.zip", marks=pytest.mark.slow)])
+def test_batched_policies_are_the_episode_loop(spec):
+    from agents.batch import batchable, run_policy
+    from agents.policies import make_policy
+
+    if spec.endswith(".zip"):
+        pytest.importorskip("stable_baselines3")
+    entry = make_policy(spec, CFG)
+    assert batchable(entry)
+    seeds = [int(s) for s in episode_seeds(10, held_out=True)]
+    batched = run_policy(entry, CFG, seeds).episodes()
+    env = entry.make_env(CFG)
+    for s, b in zip(seeds, batched, strict=True):
+        r = run_episode(env, entry.policy, s)
+        assert {k: r[k] for k in b if k != "return"} == {k: b[k] for k in b if k != "return"}, (spec, s)
+        assert b["return"] == pytest.approx(r["return"], abs=1e-12)
+    env.close()
+    assert not batchable(make_policy("rigid", CFG))

@@ -1,0 +1,7 @@
+"""``python -m agents.design``."""
+
+import sys
+
+from agents.design.cli import main
+
+sys.exit(main())

@@ -1,0 +1,84 @@
+"""The design study's findings, as checked statements beside the paper's (``docs/figures.md``).
+
+The seed paper's §4 says how the walls and the Gent limit shape the pressure-curvature curve
+(:mod:`pneunet_env.paper.checks` measures those statements on the figure data). These are the statements one
+level up, on blind grasping: each is measured here by controlled sweeps (one parameter changed on Table 1's
+actuator, every other fixed) with the batched design evaluation (:func:`agents.design.evaluate_design`) on the
+use case's search objects, and marked ✓ or ✗ by the stated criterion. ``pneunet-grasp design --checks`` prints
+the table (``--out DIR``: also ``DIR/checks.md`` and ``DIR/checks.json``).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from pneunet_env.config import EnvConfig
+from pneunet_env.paper.checks import CheckResult, render_markdown
+
+__all__ = ["GENT_SWEEP", "TOP_SWEEP", "run_design_checks", "render_markdown"]
+
+GENT_SWEEP = (6.0, 10.0, 15.0, 20.0, 30.0, 50.0, 80.0)
+"""Gent limits swept on Table 1's actuator (``mu`` 50 kPa; a model sweep, not a catalogue of materials)."""
+TOP_SWEEP = (1.0, 1.5, 2.0, 2.5, 3.0, 3.5)
+"""Top wall thicknesses swept on Table 1's actuator (mm)."""
+
+
+def _t1(**changes: Any) -> dict[str, Any]:
+    from agents.design import table1_design
+
+    p = table1_design()
+    p.pop("elastomer")
+    return {**p, "shear_modulus_kpa": 50.0, "gent_limit": 20.0, **changes}
+
+
+def run_design_checks(n_objects: int = 200, seed: int = 0, base: EnvConfig | None = None) -> list[CheckResult]:
+    """Measure every statement on ``n_objects`` search objects of ``base``'s use case (the default task's kitchen)."""
+    from agents.batch import episode_seeds
+    from agents.design import evaluate_design, reference_regimes
+
+    seeds = episode_seeds(n_objects, seed)
+    ref = reference_regimes(seeds, base)
+    gent = {j: evaluate_design(_t1(gent_limit=j), seeds, ref, base, seed) for j in GENT_SWEEP}
+    top = {h: evaluate_design(_t1(top_thickness_mm=h), seeds, ref, base, seed) for h in TOP_SWEEP}
+    win = {j: s.window_fraction for j, s in gent.items()}
+    low = float(np.mean([w for j, w in win.items() if j <= 10]))
+    high = float(np.mean([w for j, w in win.items() if j >= 20]))
+    force = {j: s.blind["force"] for j, s in gent.items()}
+    press = {h: s.pressure_kpa for h, s in top.items()}
+    tforce = {h: s.blind["force"] for h, s in top.items()}
+    fmt = lambda d, f: ", ".join(f"{k:g}: {f(v)}" for k, v in d.items())  # noqa: E731
+    pct = lambda v: f"{v:.0%}"  # noqa: E731
+    return [
+        CheckResult(
+            "design_gent_window", "main §4 (a lower J smooths the balloon jump), on blind grasping",
+            "A low Gent limit widens the window of blind pressures that hold the objects",
+            f"window within 5 points of the best, as a share of the best pressure, by J: {fmt(win, pct)}; "
+            f"mean {low:.0%} for J <= 10 against {high:.0%} for J >= 20",
+            low > high, criterion="the mean window of J <= 10 is wider than that of J >= 20 (Table 1's geometry, "
+            "mu 50 kPa)", values={f"window_J{j:g}": w for j, w in win.items()}),
+        CheckResult(
+            "design_gent_snap", "main §4 (a larger J may snap), on blind grasping",
+            "A Gent limit past the snap limit breaks blind grasping of force-controlled objects",
+            f"best blind ramp's force-controlled success by J: {fmt(force, pct)}",
+            force[80.0] < force[20.0] - 0.10,
+            criterion="at J = 80 the best blind ramp holds at least 10 points fewer force-controlled objects than "
+            "at J = 20", values={f"force_J{j:g}": v for j, v in force.items()}),
+        CheckResult(
+            "design_top_pressure", "main §4, Fig. 3a (a thinner top wall lowers the balloon pressure), on blind "
+            "grasping", "A thinner top wall lowers the blind pressure that grasps best",
+            f"best blind pressure (kPa) by top wall (mm): {fmt(press, lambda v: f'{v:.1f}')}",
+            bool(np.all(np.diff(list(press.values())) >= 0)),
+            criterion="the best blind pressure does not fall as the top wall thickens",
+            values={f"pressure_hm{h:g}": v for h, v in press.items()}),
+        CheckResult(
+            "design_top_force", "this package (the README's open question)",
+            "Table 1's force-controlled limit is the actuator's: a thinner top wall holds more force-controlled "
+            "objects blind",
+            f"force-controlled success by top wall (mm): {fmt(tforce, pct)}",
+            tforce[min(TOP_SWEEP)] > tforce[2.5] + 0.05,
+            criterion=f"at h_m = {min(TOP_SWEEP):g} mm the best blind ramp holds at least 5 points more "
+            "force-controlled objects than Table 1's 2.5 mm",
+            values={f"force_hm{h:g}": v for h, v in tforce.items()}),
+    ]

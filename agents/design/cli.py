@@ -1,0 +1,148 @@
+"""``pneunet-grasp design``'s command line."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from dataclasses import asdict
+from pathlib import Path
+
+from agents.design.outputs import write_design
+from agents.design.space import parse_bounds
+from agents.design.study import StudySpec, _optuna, make_storage, report, run_study, work
+
+_DESCRIPTION = ("which actuator lets one blind pressure schedule hold a use case's objects, with margin for "
+                "manufacturing error (Optuna over the walls, the chamber and sourced elastomers)")
+
+
+def _weights(text: str | None) -> dict[str, float] | None:
+    if text is None:
+        return None
+    out: dict[str, float] = {}
+    for item in text.split(","):
+        name, sep, val = item.partition("=")
+        if not sep or not name.strip():
+            raise ValueError(f"--class-weights must be NAME=WEIGHT,NAME=WEIGHT..., got {text!r}")
+        try:
+            out[name.strip()] = float(val)
+        except ValueError:
+            raise ValueError(f"--class-weights {text!r}: the weight of {name.strip()!r} is not a number") from None
+    return out
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--use-case", default="kitchen",
+                        help="catalogue use case whose objects the design must hold (default kitchen; see "
+                             "docs/env.md)")
+    parser.add_argument("--class-weights", default=None, metavar="NAME=W,...",
+                        help="catalogue class weights instead of a use case, e.g. apple=1,gelatin_gel=1")
+    parser.add_argument("--trials", type=int, default=120,
+                        help="designs in the study, in all (a resumed or joined study runs only the rest; default 120)")
+    parser.add_argument("--jobs", type=int, default=1, help="worker processes on this machine (default 1)")
+    parser.add_argument("--storage", default=None,
+                        help="Optuna storage shared by workers: an RDB URL (sqlite:///PATH, postgresql://...) or "
+                             "journal:PATH (default: sqlite in --out, so a stopped run resumes)")
+    parser.add_argument("--study-name", default=None, help="study name in the storage (default design-USE_CASE)")
+    parser.add_argument("--objects", type=int, default=200, help="search objects per design (default 200)")
+    parser.add_argument("--held-out", type=int, default=400,
+                        help="held-out objects the best designs are reported on (default 400)")
+    parser.add_argument("--top", type=int, default=3, help="best designs reported and written (default 3)")
+    parser.add_argument("--seed", type=int, default=0, help="objects' and sampler's seed (default 0)")
+    parser.add_argument("--sampler", choices=("tpe", "nsga2"), default="tpe",
+                        help="Optuna's multi-objective sampler (default tpe)")
+    parser.add_argument("--bound", action="append", default=[], metavar="KEY=LOW:HIGH",
+                        help="narrow a parameter's range (repeatable), e.g. top_thickness_mm=1.5:3")
+    parser.add_argument("--config", default=None, help="base env config YAML (objects, task) the design changes")
+    parser.add_argument("--out", type=Path, default=None, help="output folder (default design/USE_CASE)")
+    parser.add_argument("--export", type=Path, default=None,
+                        help="also write the best design's env config here (PATH.yaml, with PATH.best_ramp.json)")
+    parser.add_argument("--worker", action="store_true",
+                        help="only run trials (a worker joining --storage from another machine); no report")
+    parser.add_argument("--report", action="store_true", help="only report on the study as it stands")
+    parser.add_argument("--checks", action="store_true",
+                        help="instead of a study: measure the design findings (agents.design.checks) and print them")
+    from pneunet_env.cli.progress import add_progress_argument
+
+    add_progress_argument(parser, "--quiet")
+
+
+def spec_from_args(args: argparse.Namespace) -> StudySpec:
+    """The study's settings from the command line, every value checked before any work."""
+    weights = _weights(args.class_weights)
+    out = args.out if args.out is not None else Path("design") / (args.use_case if weights is None else "weights")
+    if out.exists() and not out.is_dir():
+        raise ValueError(f"--out {str(out)!r} exists and is not a folder")
+    if args.export is not None and args.export.suffix not in (".yaml", ".yml"):
+        raise ValueError(f"--export must name a .yaml file, got {str(args.export)!r}")
+    if args.worker and args.report:
+        raise ValueError("--worker and --report exclude each other")
+    spec = StudySpec(out=out, use_case=args.use_case, class_weights=weights, trials=args.trials, jobs=args.jobs,
+                     storage=args.storage, study_name=args.study_name, seed=args.seed, objects=args.objects,
+                     held_out=args.held_out, sampler=args.sampler, bounds=parse_bounds(args.bound),
+                     config=args.config, top=args.top)
+    if spec.storage is not None:
+        make_storage(spec.storage, out)  # a bad URL is named now, not after the work
+    _optuna()
+    return spec
+
+
+def run(args: argparse.Namespace) -> int:
+    if args.checks:
+        return _run_checks(args)
+    try:
+        spec = spec_from_args(args)
+        if args.worker:
+            n = work(spec, parallel=None if spec.jobs == 1 else False, progress=args.progress)
+            print(f"ran {n} designs in study {spec.name!r}")
+            return 0
+        t0 = time.perf_counter()
+        if args.report:
+            result = report(spec, progress=args.progress)
+        else:
+            print(f"design study {spec.name!r}: {spec.trials} designs, {spec.objects} search objects, "
+                  f"{spec.held_out} held out, {spec.jobs} process(es); storage "
+                  f"{spec.storage or spec.out / 'study.db'}")
+            result = run_study(spec, progress=args.progress)
+    except ValueError as exc:
+        raise SystemExit(f"pneunet-grasp design: {exc}") from None
+    best = next(r for r in result["designs"] if r["label"] == "rank-1")
+    if args.export is not None:
+        write_design(args.export, best, spec.base_config(), spec.name)
+        print(f"wrote {args.export} and {args.export.with_suffix('.best_ramp.json')}")
+    if result["importance"]:
+        imp = result["importance"]
+        print("importance (PED-ANOVA, design score): " + ", ".join(f"{k} {v:.2f}" for k, v in imp.items()))
+    print(f"{result['scored']} designs scored; wrote {spec.out / 'design.json'}, pareto.png, curves.png, "
+          f"importance.png and designs/ in {time.perf_counter() - t0:.0f} s")
+    return 0
+
+
+def _run_checks(args: argparse.Namespace) -> int:
+    from agents.design.checks import render_markdown, run_design_checks
+    from agents.policies import atomic_write_bytes
+
+    try:
+        spec = spec_from_args(args)
+        res = run_design_checks(spec.objects, spec.seed, spec.base_config())
+    except ValueError as exc:
+        raise SystemExit(f"pneunet-grasp design: {exc}") from None
+    table = render_markdown(res)
+    print(table)
+    if args.out is not None:
+        spec.out.mkdir(parents=True, exist_ok=True)
+        atomic_write_bytes(spec.out / "checks.md", (table + "\n").encode())
+        atomic_write_bytes(spec.out / "checks.json", (json.dumps([asdict(r) for r in res], indent=1) + "\n").encode())
+        print(f"wrote {spec.out / 'checks.md'} and checks.json")
+    return 0 if all(r.passed == r.expected for r in res) else 1
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="pneunet-grasp design", description=_DESCRIPTION)
+    add_arguments(parser)
+    return run(parser.parse_args(argv))
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,217 @@
+"""A study's outputs: design configs with their ramps beside them, design.json's figures (Pareto, curves,
+importance)."""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from agents.design.space import P_TILDE_MAX, RAMP_STEPS, WINDOW_POINTS, design_config
+from pneunet_env.config import EnvConfig
+
+
+def design_yaml(params: Mapping[str, Any], base: EnvConfig, note: str) -> str:
+    """The env config of a design as YAML (the actuator, its pressure scale and the objects it was designed for)."""
+    import yaml
+
+    cfg = design_config(params, base)
+    d = cfg.to_dict()
+    body = {"actuator": d["actuator"],
+            "objects": {"use_case": d["objects"]["use_case"], "class_weights": d["objects"]["class_weights"]},
+            "task": {"max_pressure_kpa": d["task"]["max_pressure_kpa"],
+                     "max_pressure_step_kpa": d["task"]["max_pressure_step_kpa"]}}
+    head = "".join(f"# {line}\n" for line in note.splitlines())
+    return head + yaml.safe_dump(body, sort_keys=False)
+
+
+def write_design(path: Path, row: dict[str, Any], base: EnvConfig, study: str) -> Path:
+    """``PATH.yaml`` (the design's env config) and ``PATH.best_ramp.json`` (its blind ramp, found on the search
+    objects), both written atomically."""
+    from agents.policies import atomic_write_bytes
+    from agents.scripted import LinearRamp
+
+    s, h = row["search"], row["held_out"]
+    e = row["elastomer"]
+    note = (f"A pneu-net designed by `pneunet-grasp design` (study {study!r}, trial {row['trial']}): "
+            f"{row['label']}.\n"
+            f"Elastomer: {e['name']} (mu {e['shear_modulus_kpa']:g} kPa, J {e['gent_limit']:g}; {e['source']}).\n"
+            f"Blind ramp beside it ({path.stem}.best_ramp.json): {s['pressure_kpa']:.1f} kPa over {RAMP_STEPS} "
+            "steps.\n"
+            f"Held-out objects ({h['objects']['all']}): force-controlled {h['blind']['force']:.1%}, "
+            f"position-controlled {h['blind']['position']:.1%} (Table 1's labels); oracle "
+            f"{h['oracle']['force']:.1%} / {h['oracle']['position']:.1%}; under manufacturing error "
+            f"{h['robust']['force']:.1%} / {h['robust']['position']:.1%}.\n"
+            'Load with gym.make("PneuNetGrasp-v0", config="<this file>").')
+    path.parent.mkdir(parents=True, exist_ok=True)
+    atomic_write_bytes(path, design_yaml(row["params"], base, note).encode())
+    cfg = design_config(row["params"], base)
+    ramp = LinearRamp(s["target"], RAMP_STEPS, cfg)
+    data = {**ramp.to_dict(), "gripper": "pneunet", "target_kpa": s["pressure_kpa"],
+            "search": {"by": "pneunet-grasp design", "study": study, "trial": row["trial"],
+                       "objects": s["objects"]["all"]},
+            "score": {"search": {k: s[k] for k in ("blind", "oracle", "robust")},
+                      "held_out": {k: h[k] for k in ("blind", "oracle", "robust")}}}
+    atomic_write_bytes(path.with_suffix(".best_ramp.json"), (json.dumps(data, indent=1) + "\n").encode())
+    return path
+
+
+def write_outputs(spec, result: dict[str, Any], base: EnvConfig) -> None:
+    """Every output of a study's report in ``spec.out`` (atomic writes)."""
+    from agents.policies import atomic_write_bytes
+
+    out = spec.out
+    for row in result["designs"]:
+        write_design(out / "designs" / f"{row['label']}.yaml", row, base, spec.name)
+    atomic_write_bytes(out / "design.json", (json.dumps(result, indent=1, default=_jsonable) + "\n").encode())
+    try:
+        plt = _plt()
+    except ImportError:
+        return
+    plot_pareto(result, out / "pareto.png", plt)
+    plot_curves(result, base, out / "curves.png", plt)
+    plot_importance(result, out / "importance.png", plt)
+
+
+def _jsonable(x: Any) -> Any:
+    if isinstance(x, np.generic):
+        return x.item()
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    if isinstance(x, Path):
+        return str(x)
+    raise TypeError(f"cannot write {type(x).__name__} to JSON")
+
+
+def _plt():
+    from agents.evaluate import _matplotlib
+
+    return _matplotlib()
+
+
+def _save(fig, path: Path, plt) -> Path:
+    """Save a figure atomically (a temporary PNG in the same folder, then renamed)."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp.png")
+    fig.savefig(tmp, dpi=120)
+    plt.close(fig)
+    os.replace(tmp, path)
+    return path
+
+
+def _use_case_title(result: dict[str, Any]) -> str:
+    st = result["settings"]
+    return st["use_case"] if st["class_weights"] is None else "class weights " + ", ".join(
+        f"{k} {v:g}" for k, v in st["class_weights"].items())
+
+
+def plot_pareto(result: dict[str, Any], path: Path, plt) -> Path:
+    """Blind success on force- against position-controlled objects (Table 1's labels), every design of the study;
+    colour: the worse regime under manufacturing error; the Pareto front ringed; Table 1 and the best marked."""
+    pts = result["all"]
+    x = np.array([p["objectives"][0] for p in pts])
+    y = np.array([p["objectives"][1] for p in pts])
+    c = np.array([p["objectives"][2] for p in pts])
+    front = np.array([p["pareto"] for p in pts])
+    fig, ax = plt.subplots(figsize=(6.4, 5.0))
+    sc = ax.scatter(x, y, c=c, cmap="viridis", vmin=0, vmax=1, s=22, alpha=0.85, lw=0)
+    ax.scatter(x[front], y[front], s=70, facecolors="none", edgecolors="black", lw=0.9, label="Pareto front")
+    for row in result["designs"]:
+        s = row["search"]
+        if row["label"] == "table1":
+            ax.plot(s["blind"]["force"], s["blind"]["position"], "*", ms=16, color="#d62728", mec="black",
+                    label=f"Table 1 actuator ({s['pressure_kpa']:.1f} kPa)")
+        elif row["label"] == "rank-1":
+            ax.plot(s["blind"]["force"], s["blind"]["position"], "D", ms=9, color="#ff7f0e", mec="black",
+                    label=f"best design ({row['params']['elastomer']}, {s['pressure_kpa']:.1f} kPa)")
+    fig.colorbar(sc, ax=ax, label="worse regime under manufacturing error")
+    ax.set_xlabel("blind success, force-controlled objects")
+    ax.set_ylabel("blind success, position-controlled objects")
+    ax.set_xlim(-0.03, 1.03)
+    ax.set_ylim(-0.03, 1.03)
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=7.5, loc="lower left")
+    ax.set_title(f"Actuator designs for {_use_case_title(result)}: one blind ramp each\n"
+                 f"({result['scored']} designs, {result['objects']} search objects; regimes by Table 1's labels)",
+                 fontsize=9)
+    fig.tight_layout()
+    return _save(fig, path, plt)
+
+
+def free_curve(params: Mapping[str, Any], base: EnvConfig, n: int = 121) -> tuple[np.ndarray, np.ndarray]:
+    """The free actuator's pressure-curvature curve of a design: ``(p~, kappa~)`` from rest to ``p~ = 1.2``."""
+    from pneunet_env.physics.solver import load_path
+
+    cfg = design_config(params, base)
+    ps = np.linspace(0.0, P_TILDE_MAX, n)
+    lp = load_path(ps, 0.0, 0.02, cfg.actuator_params, cfg.solver)
+    return ps, lp.curvature
+
+
+def plot_curves(result: dict[str, Any], base: EnvConfig, path: Path, plt) -> Path:
+    """The best designs beside Table 1: (a) the free pressure-curvature curve, dimensionless as the paper's Fig. 3;
+    (b) the same in kPa and 1/m, with the blind pressure and the objects' curvatures; (c) blind success against
+    the blind pressure, with the window within 5 points of the best."""
+    from pneunet_env.catalogue import class_table
+
+    fig, axes = plt.subplots(1, 3, figsize=(15, 4.4))
+    colours = iter(["#1f77b4", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#17becf", "#7f7f7f", "#bcbd22"] * 4)
+    for row in result["designs"]:
+        col = "#d62728" if row["label"] == "table1" else next(colours)
+        s = row["search"]
+        mu = row["elastomer"]["shear_modulus_kpa"]
+        w = row["params"]["width_mm"]
+        ps, k = free_curve(row["params"], base)
+        lab = ("Table 1" if row["label"] == "table1" else row["label"]) + f" ({row['params']['elastomer']})"
+        axes[0].plot(ps, k, color=col, lw=1.6, label=lab)
+        axes[1].plot(ps * mu, k / (w * 1e-3), color=col, lw=1.6, label=lab)
+        kb = np.interp(s["pressure_kpa"] / mu, ps, k) / (w * 1e-3)
+        axes[1].plot(s["pressure_kpa"], kb, "o", color=col, mec="black", ms=7)
+        axes[2].plot(s["pressures_kpa"], s["rate_vs_pressure"], color=col, lw=1.6, label=lab)
+        axes[2].axvspan(*s["window_kpa"], color=col, alpha=0.12, lw=0)
+        axes[2].plot(s["pressure_kpa"], s["blind"]["all"], "o", color=col, mec="black", ms=7)
+    cfg = base
+    radius = class_table(cfg.objects.class_items).radius_mm if cfg.objects.from_catalogue else None
+    if radius is not None:
+        lo, hi = 1e3 / float(np.max(radius[1])), 1e3 / float(np.min(radius[0]))
+        axes[1].axhspan(lo, hi, color="#888888", alpha=0.15, lw=0,
+                        label=f"objects' curvature (R {float(np.min(radius[0])):g}-{float(np.max(radius[1])):g} mm)")
+    axes[0].set_xlabel("p~ = p / mu")
+    axes[0].set_ylabel("kappa~ = w kappa (free actuator)")
+    axes[0].set_title("(a) free actuator, dimensionless (the paper's Fig. 3)", fontsize=9)
+    axes[1].set_xlabel("pressure (kPa)")
+    axes[1].set_ylabel("curvature (1/m), free actuator")
+    axes[1].set_xscale("log")
+    axes[1].set_title("(b) in physical units; dot: the blind pressure", fontsize=9)
+    axes[2].set_xlabel("blind ramp's pressure (kPa)")
+    axes[2].set_ylabel("success, search objects")
+    axes[2].set_xscale("log")
+    axes[2].set_ylim(-0.03, 1.03)
+    axes[2].set_title(f"(c) one blind pressure for all; band: within {WINDOW_POINTS:.0%} of the best", fontsize=9)
+    for ax in axes:
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=7)
+    fig.suptitle(f"Why the design works ({_use_case_title(result)})", fontsize=10)
+    fig.tight_layout()
+    return _save(fig, path, plt)
+
+
+def plot_importance(result: dict[str, Any], path: Path, plt) -> Path:
+    """Optuna's PED-ANOVA importance of each design parameter for the design score."""
+    imp = result["importance"]
+    fig, ax = plt.subplots(figsize=(6, 3.2))
+    if imp:
+        names = list(imp)[::-1]
+        ax.barh(names, [imp[n] for n in names], color="#4c72b0")
+        ax.set_xlabel("importance for the design score (PED-ANOVA: top designs against all)")
+    else:
+        ax.text(0.5, 0.5, "too few designs for an importance estimate", ha="center", va="center")
+        ax.set_axis_off()
+    ax.set_title(f"What matters for one blind schedule ({_use_case_title(result)}, {result['scored']} designs)",
+                 fontsize=9)
+    fig.tight_layout()
+    return _save(fig, path, plt)

@@ -1,0 +1,164 @@
+"""The design space: the sourced bounds, the elastomers, and a design's env config (its pressure scale)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from functools import lru_cache
+from pathlib import Path
+from typing import Any
+
+from pneunet_env.config import EnvConfig, load_config
+
+P_TILDE_MAX = 1.2
+"""A design's largest pressure over its shear modulus (Table 1: 60 kPa over 50 kPa; the paper's Fig. 3 axis)."""
+P_TILDE_STEP = 0.06
+"""A design's largest pressure change per step over its modulus (Table 1: 3 kPa over 50 kPa)."""
+TARGETS = tuple(round(i / 60, 10) for i in range(1, 61))
+"""The candidate blind pressures, fractions of ``max_pressure_kpa``: ``p~ = 0.02 .. 1.2`` in steps of 0.02."""
+RAMP_STEPS = 20
+"""The blind ramp's duration: any duration that ends inside the squeeze phase gives the same outcomes
+(:data:`agents.search.DURATIONS` says how that was measured)."""
+N_ERRORS = 8
+"""Perturbed actuators per design for the manufacturing-error score."""
+WALL_ERROR = 0.10
+"""Wall thicknesses' manufacturing error: uniform within +-10 %."""
+MODULUS_ERROR = 0.20
+"""The elastomer's modulus error (batch to batch, cure): uniform within +-20 %."""
+WINDOW_POINTS = 0.05
+"""The pressure window: the blind pressures whose success stays within this of the best."""
+
+
+@dataclass(frozen=True)
+class Bound:
+    """A continuous design parameter: an ``EnvConfig`` actuator key, its range and why."""
+
+    key: str
+    low: float
+    high: float
+    unit: str
+    source: str
+
+
+@dataclass(frozen=True)
+class Elastomer:
+    """A casting elastomer: its small-strain shear modulus and Gent limit, from a fit to measured curves."""
+
+    name: str
+    shear_modulus_kpa: float
+    gent_limit: float
+    source: str
+
+
+@lru_cache(maxsize=1)
+def _elastomer_data() -> dict[str, Any]:
+    """``pneunet_env/data/elastomers.yaml`` (package data), read by the config's YAML reader (no duplicate keys)."""
+    import pneunet_env.data
+    from pneunet_env.config import _read_yaml
+
+    path = Path(pneunet_env.data.__file__).resolve().parent / "elastomers.yaml"
+    data = _read_yaml(path)
+    if not isinstance(data.get("elastomers"), dict):
+        raise ValueError(f"{path} must hold a mapping 'elastomers'")
+    return data
+
+
+TABLE1_ELASTOMER = Elastomer("table1", 50.0, 20.0, "the seed paper's supplement Table 1 (mu 50 kPa, J 20)")
+
+
+def elastomers() -> dict[str, Elastomer]:
+    """The elastomers a design may use: every entry of ``elastomers.yaml`` with both ``mu`` and ``J`` sourced,
+    and the paper's Table 1 material."""
+    out = {TABLE1_ELASTOMER.name: TABLE1_ELASTOMER}
+    for name, e in _elastomer_data()["elastomers"].items():
+        mu, j = e.get("shear_modulus_kpa"), e.get("gent_limit")
+        if mu is None or j is None:
+            continue  # no sourced Gent limit: not a design choice
+        out[str(name)] = Elastomer(str(name), float(mu), float(j), str(e.get("source", "")))
+    return out
+
+
+DESIGN_SPACE: tuple[Bound, ...] = (
+    Bound("top_thickness_mm", 1.0, 3.75, "mm",
+          "1 mm: the thinnest cast pneu-net wall read (the Soft Robotics Toolkit's PneuNets mould, elastomers.yaml "
+          "wall_thickness_mm); 3.75 mm: h/w = 0.75 at w = 5 mm, the top of the seed paper's Fig. 3 (a thicker wall "
+          "is no harder to cast)"),
+    Bound("side_thickness_mm", 1.0, 3.75, "mm", "as the top wall"),
+    Bound("base_thickness_mm", 1.0, 3.75, "mm", "as the top wall (the paper: it changes little)"),
+    Bound("chamber_height_mm", 5.0, 15.0, "mm",
+          "5 mm: Table 1; 15 mm: the Soft Robotics Toolkit's cast chamber (elastomers.yaml chamber_mm)"),
+    Bound("width_mm", 5.0, 15.0, "mm", "as the chamber height"),
+)
+"""The continuous parameters, each a manufacturable range with its source. A wall of 1 mm in a 15 mm chamber is
+``h/w = 0.07``, far below the paper's computed ``h/w = 0.25 .. 0.75`` (the Toolkit's own actuator is at 0.07 ..
+0.13): the thin-wall model is defined there, and thin walls are where it is most apt, but the paper did not
+compute it, so such designs leave the range the seed paper checked (:func:`validity`)."""
+
+
+def validity(params: Mapping[str, Any]) -> dict[str, float | bool]:
+    """The design's wall-to-width ratios and whether they lie in the seed paper's computed range 0.25 .. 0.75."""
+    w = float(params["width_mm"])
+    r = {k: float(params[k]) / w for k in ("top_thickness_mm", "side_thickness_mm", "base_thickness_mm")}
+    return {**{f"{k.split('_')[0]}_over_width": v for k, v in r.items()},
+            "chamber_aspect": float(params["chamber_height_mm"]) / w,
+            "in_paper_range": all(0.25 <= v <= 0.75 for v in r.values())}
+
+
+def parse_bounds(items: Sequence[str]) -> dict[str, tuple[float, float]]:
+    """``KEY=LOW:HIGH`` strings -> narrowed bounds (each inside :data:`DESIGN_SPACE`'s, ``LOW < HIGH``)."""
+    space = {b.key: b for b in DESIGN_SPACE}
+    out: dict[str, tuple[float, float]] = {}
+    for item in items:
+        key, sep, rng = str(item).partition("=")
+        lo_s, sep2, hi_s = rng.partition(":")
+        if not sep or not sep2:
+            raise ValueError(f"--bound must be KEY=LOW:HIGH, got {item!r}")
+        if key not in space:
+            raise ValueError(f"--bound {item!r}: unknown parameter {key!r}; valid: {', '.join(space)}")
+        try:
+            lo, hi = float(lo_s), float(hi_s)
+        except ValueError:
+            raise ValueError(f"--bound {item!r}: LOW and HIGH must be numbers") from None
+        b = space[key]
+        if not (math.isfinite(lo) and math.isfinite(hi)) or not lo < hi:
+            raise ValueError(f"--bound {item!r}: need finite LOW < HIGH")
+        if lo < b.low or hi > b.high:
+            raise ValueError(f"--bound {item!r}: outside the manufacturable range {b.low:g}..{b.high:g} {b.unit} "
+                             f"({b.source})")
+        out[key] = (lo, hi)
+    return out
+
+
+def design_config(params: Mapping[str, Any], base: EnvConfig | None = None) -> EnvConfig:
+    """The env config of a design: ``params`` (actuator keys of :data:`DESIGN_SPACE`, and ``elastomer``, a name
+    of :func:`elastomers`) on ``base``, with the pressure scale following the modulus (:data:`P_TILDE_MAX`)."""
+    base = EnvConfig() if base is None else base
+    p = dict(params)
+    name = p.pop("elastomer", None)
+    if name is not None:
+        table = {TABLE1_ELASTOMER.name: TABLE1_ELASTOMER} if name == TABLE1_ELASTOMER.name else elastomers()
+        if name not in table:
+            raise ValueError(f"unknown elastomer {name!r}; valid: {', '.join(table)}")
+        p["shear_modulus_kpa"] = table[name].shear_modulus_kpa
+        p["gent_limit"] = table[name].gent_limit
+    mu = float(p.get("shear_modulus_kpa", base.actuator.shear_modulus_kpa))
+    p.setdefault("max_pressure_kpa", round(P_TILDE_MAX * mu, 6))
+    p.setdefault("max_pressure_step_kpa", round(P_TILDE_STEP * mu, 6))
+    return load_config(base, **p)
+
+
+def table1_design() -> dict[str, Any]:
+    """The seed paper's Table 1 actuator as design parameters."""
+    a = EnvConfig().actuator
+    return {b.key: getattr(a, b.key) for b in DESIGN_SPACE} | {"elastomer": TABLE1_ELASTOMER.name}
+
+
+def perturbed_config(config: EnvConfig, factors: Sequence[float]) -> EnvConfig:
+    """``config``'s actuator made with errors: top, side and base walls and the modulus times ``factors``; the
+    pressure scale (the schedule's kPa) is the nominal design's."""
+    a = config.actuator
+    return load_config(config, top_thickness_mm=a.top_thickness_mm * factors[0],
+                       side_thickness_mm=a.side_thickness_mm * factors[1],
+                       base_thickness_mm=a.base_thickness_mm * factors[2],
+                       shear_modulus_kpa=a.shear_modulus_kpa * factors[3])
