@@ -106,7 +106,8 @@ def _vector_env(config: EnvConfig, n: int, backend: str, parallel: bool | None):
 
 def run_batch(config: EnvConfig, seeds: Sequence[int], act: Callable[[np.ndarray, Any], np.ndarray], copies: int = 1,
               backend: str = "auto", parallel: bool | None = None,
-              begin: Callable[[dict[str, Any]], None] | None = None) -> BatchOutcome:
+              begin: Callable[[dict[str, Any]], None] | None = None,
+              options: dict[str, Any] | None = None) -> BatchOutcome:
     """Run ``copies`` copies of every object of ``seeds`` together; sub-env ``c * M + m`` is copy ``c`` of object ``m``.
 
     Args:
@@ -119,6 +120,8 @@ def run_batch(config: EnvConfig, seeds: Sequence[int], act: Callable[[np.ndarray
         backend, parallel: the vector env's (``"auto"``: numba's fused step where installed).
         begin: called once with the reset's info (the vector info: each object's constants as ``(N,)`` arrays),
             before the first step: what a policy that knows the object (the oracle) reads.
+        options: the reset's object pins, as the single env's (``{"object_stiffness": k}``); a value may be an
+            array with one entry per object (``(M,)``), repeated for every copy.
     """
     seeds = np.asarray(seeds, dtype=np.int64)
     if seeds.ndim != 1 or seeds.size < 1:
@@ -129,7 +132,9 @@ def run_batch(config: EnvConfig, seeds: Sequence[int], act: Callable[[np.ndarray
     n = m * c
     env = _vector_env(config, n, backend, parallel)
     try:
-        obs, reset_info = env.reset(seed=np.tile(seeds, c).tolist())
+        pins = None if options is None else {
+            k: (np.tile(np.asarray(v), c) if np.ndim(v) == 1 else v) for k, v in options.items()}
+        obs, reset_info = env.reset(seed=np.tile(seeds, c).tolist(), options=pins)
         if begin is not None:
             begin(reset_info)
         obj = env.objects
@@ -281,9 +286,11 @@ def batchable(entry) -> bool:
     return entry.env_id == PNEUNET_ENV and isinstance(entry.policy, (LinearRamp, StepPolicy, Oracle, SB3Policy))
 
 
-def run_policy(entry, config: EnvConfig, seeds: Sequence[int], backend: str = "auto") -> BatchOutcome:
+def run_policy(entry, config: EnvConfig, seeds: Sequence[int], backend: str = "auto",
+               options: dict[str, Any] | None = None) -> BatchOutcome:
     """One episode of ``entry``'s policy per object of ``seeds``, batched (:func:`batchable` entries only); the
-    env is the entry's (its ``env_kwargs``, e.g. a model's ``observe_volume``, on top of ``config``)."""
+    env is the entry's (its ``env_kwargs``, e.g. a model's ``observe_volume``, on top of ``config``); ``options``:
+    :func:`run_batch`'s object pins."""
     from agents.oracle import Oracle
 
     if not batchable(entry):
@@ -291,7 +298,7 @@ def run_policy(entry, config: EnvConfig, seeds: Sequence[int], backend: str = "a
     cfg = load_config(config, **entry.env_kwargs) if entry.env_kwargs else config
     pol = entry.policy
     if not isinstance(pol, Oracle):
-        return run_batch(cfg, seeds, lambda obs, env: pol(obs), backend=backend)
+        return run_batch(cfg, seeds, lambda obs, env: pol(obs), backend=backend, options=options)
     targets = np.zeros(len(seeds))
     keys = ("object_stiffness", "object_curvature", "failure_traction_kpa", "crush_indentation_mm",
             "grip_traction_kpa")
@@ -305,4 +312,4 @@ def run_policy(entry, config: EnvConfig, seeds: Sequence[int], backend: str = "a
         p = np.asarray(obs, dtype=np.float64)[..., 0]
         return np.clip((targets - p) / pol.step_fraction, -1.0, 1.0)[..., None].astype(np.float32)
 
-    return run_batch(cfg, seeds, act, backend=backend, begin=begin)
+    return run_batch(cfg, seeds, act, backend=backend, begin=begin, options=options)

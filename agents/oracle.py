@@ -32,6 +32,10 @@ from pneunet_env.physics.solver import load_path
 __all__ = ["Oracle", "OraclePlan", "plan_target", "feasible_stiffness"]
 
 
+GRID_POINTS = 120
+"""The oracle's pressure grid: ``max_pressure_kpa / 120`` apart by default (0.5 kPa at 60 kPa)."""
+
+
 class OraclePlan(dict):
     """The oracle's choice for one object: ``target`` (fraction of ``p_max``), ``pressure_kpa``, ``margin``
     (natural log; > 0 is feasible), ``feasible`` (bool), ``grip_ratio``, ``damage_ratio`` at the target."""
@@ -44,7 +48,7 @@ def plan_target(
     crush_indentation: float,
     grip_traction: float,
     config: EnvConfig,
-    resolution_kpa: float = 0.5,
+    resolution_kpa: float | None = None,
 ) -> OraclePlan:
     """The best constant pressure for one object (all arguments dimensionless: ``/mu``, ``/w``).
 
@@ -54,8 +58,11 @@ def plan_target(
         failure_traction, crush_indentation, grip_traction: the object's thresholds (``F~_f``, ``delta~_c``,
             ``F~_g``; :func:`pneunet_env.task.object_thresholds`).
         config: the env's config (actuator, pressure range, solver).
-        resolution_kpa: the pressure grid's spacing.
+        resolution_kpa: the pressure grid's spacing; ``None``: ``max_pressure_kpa / 120`` (:data:`GRID_POINTS`;
+            0.5 kPa at the default 60 kPa), so a soft actuator's few kPa get as fine a grid as Table 1's.
     """
+    if resolution_kpa is None:
+        resolution_kpa = config.task.max_pressure_kpa / GRID_POINTS
     if not resolution_kpa > 0.0:
         raise ValueError(f"resolution_kpa must be > 0, got {resolution_kpa!r}")
     p_max = config.pressure_max
@@ -108,7 +115,7 @@ class Oracle:
 
     Args:
         config: the env's config (the defaults if ``None``).
-        resolution_kpa: the pressure grid the choice is made on.
+        resolution_kpa: the pressure grid the choice is made on (``None``: ``max_pressure_kpa / 120``).
 
     Call :meth:`begin_episode` with ``reset``'s ``info`` before the episode's first action
     (:func:`agents.evaluate.run_episode` does). ``plan`` holds the last choice.
@@ -116,9 +123,10 @@ class Oracle:
 
     blind = False
 
-    def __init__(self, config: EnvConfig | None = None, resolution_kpa: float = 0.5) -> None:
+    def __init__(self, config: EnvConfig | None = None, resolution_kpa: float | None = None) -> None:
         self.config = EnvConfig() if config is None else config
-        self.resolution_kpa = float(resolution_kpa)
+        self.resolution_kpa = float(self.config.task.max_pressure_kpa / GRID_POINTS if resolution_kpa is None
+                                    else resolution_kpa)
         self.step_fraction = self.config.task.max_pressure_step_kpa / self.config.task.max_pressure_kpa
         self.plan: OraclePlan | None = None
         self._cache: dict[tuple[float, ...], OraclePlan] = {}

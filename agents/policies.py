@@ -202,7 +202,7 @@ def _describe(pol, full_scale: float, unit: str) -> str:
 def _oracle(spec, params, config):
     from agents.oracle import Oracle
 
-    res = _float(spec, "resolution_kpa", params.pop("resolution_kpa", "0.5"))
+    res = _float(spec, "resolution_kpa", params.pop("resolution_kpa")) if "resolution_kpa" in params else None
     _check_empty(spec, params, "resolution_kpa")
     return PolicyEntry(spec, "oracle (knows k~; best constant pressure)", Oracle(config, res), blind=False)
 

@@ -39,7 +39,8 @@ def write_design(path: Path, row: dict[str, Any], base: EnvConfig, study: str) -
     e = row["elastomer"]
     note = (f"A pneu-net designed by `pneunet-grasp design` (study {study!r}, trial {row['trial']}): "
             f"{row['label']}.\n"
-            f"Elastomer: {e['name']} (mu {e['shear_modulus_kpa']:g} kPa, J {e['gent_limit']:g}; {e['source']}).\n"
+            f"Elastomer: {e['name']} (mu {e['shear_modulus_kpa']:g} kPa, J {e['gent_limit']:g}; "
+            f"pneunet_env/data/elastomers.yaml: {e['source']}).\n"
             f"Blind ramp beside it ({path.stem}.best_ramp.json): {s['pressure_kpa']:.1f} kPa over {RAMP_STEPS} "
             "steps.\n"
             f"Held-out objects ({h['objects']['all']}): force-controlled {h['blind']['force']:.1%}, "

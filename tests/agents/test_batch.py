@@ -99,3 +99,22 @@ def test_batched_policies_are_the_episode_loop(spec):
         assert b["return"] == pytest.approx(r["return"], abs=1e-12)
     env.close()
     assert not batchable(make_policy("rigid", CFG))
+
+
+def test_evaluate_on_a_stiffness_grid_runs_batched_with_the_same_episodes():
+    from agents.evaluate import episode_seed, evaluate_policies
+    from agents.policies import make_policy
+    from pneunet_env import PAPER_TASK
+
+    cfg = load_config(**PAPER_TASK)
+    entry = make_policy("best-ramp", cfg)
+    grid = [3e-5, 1e-3]
+    rows = evaluate_policies([entry], cfg, grid, episodes=2, progress=False)
+    env = entry.make_env(cfg)
+    for i, (k, row) in enumerate(zip(grid, rows, strict=True)):
+        res = [run_episode(env, entry.policy, episode_seed(0, i, e), {"object_stiffness": k}) for e in range(2)]
+        assert row["success_rate"] == np.mean([r["success"] for r in res])
+        assert row["mean_return"] == pytest.approx(np.mean([r["return"] for r in res]), abs=1e-12)
+        assert row["mean_peak_traction_kpa"] == pytest.approx(np.mean([r["peak_traction_kpa"] for r in res]),
+                                                              rel=1e-12)
+    env.close()

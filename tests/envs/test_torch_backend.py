@@ -172,8 +172,10 @@ def test_torch_vector_env_renders_and_reports_objects():
 
 
 def test_the_gpu_form_of_the_masked_solver_equals_the_cpu_form():
-    """What a GPU runs (no compaction of finished envs, a live check every 8 rounds) gives the CPU form's answers, bit
-    for bit, on the CPU; and a round budget flags the envs it cuts short (STATUS_BUDGET, unconverged), never hangs."""
+    """What a GPU runs (no compaction of finished envs, a live check every 8 rounds) gives the CPU form's answers on the
+    CPU: the same path (iterations, sub-steps, snaps, status) and the same states to the last bits (an AVX2 machine
+    rounds one env's side strain 1 ulp apart: the arrays' lengths differ, and with them torch's vectorised tails);
+    and a round budget flags the envs it cuts short (STATUS_BUDGET, unconverged), never hangs."""
     from pneunet_env.physics import masked
     from pneunet_env.physics.solver import DEFAULT_OPTIONS, STATUS_BUDGET, params_tuple
     from pneunet_env.physics.xp import torch_ops
@@ -189,8 +191,11 @@ def test_the_gpu_form_of_the_masked_solver_equals_the_cpu_form():
     cpu = masked.solve_masked(k, s, k * 0, p1, kobj, ko, prm, opts, active, ops, compact=True)
     gpu = masked.solve_masked(k, s, k * 0, p1, kobj, ko, prm, opts, active, ops, compact=False, check_every=8)
     for name in masked.OUTPUTS:
-        assert torch.equal(torch.nan_to_num(cpu[name].double(), nan=-7.0), torch.nan_to_num(gpu[name].double(),
-                                                                                            nan=-7.0)), name
+        a, b = torch.nan_to_num(cpu[name].double(), nan=-7.0), torch.nan_to_num(gpu[name].double(), nan=-7.0)
+        if name in ("iterations", "substeps", "snapped", "status"):  # the path taken: the same, exactly
+            assert torch.equal(a, b), name
+        else:  # compaction changes the vector lengths, so torch's SIMD tails (CPU-dependent) may round the last bit
+            assert torch.allclose(a, b, rtol=1e-13, atol=1e-13), (name, float((a - b).abs().max()))
     cut = masked.solve_masked(k, s, k * 0, p1, kobj, ko, prm, opts, active, ops, compact=False, check_every=8,
                               max_rounds=5)
     flagged = cut["status"] == STATUS_BUDGET
