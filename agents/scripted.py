@@ -27,7 +27,7 @@ import numpy as np
 
 from pneunet_env.config import EnvConfig
 
-__all__ = ["LinearRamp", "StepPolicy", "load_ramp", "save_ramp"]
+__all__ = ["LinearRamp", "StepPolicy", "load_ramp", "save_ramp", "jsonable"]
 
 
 class _TargetPolicy:
@@ -126,11 +126,12 @@ def save_ramp(policy: LinearRamp | StepPolicy, path: str | os.PathLike, **metada
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     data = {**policy.to_dict(), **metadata}
-    path.write_text(json.dumps(data, indent=1, default=_jsonable) + "\n")
+    path.write_text(json.dumps(data, indent=1, default=jsonable) + "\n")
     return path
 
 
-def _jsonable(x: Any) -> Any:
+def jsonable(x: Any) -> Any:
+    """``json.dumps``'s ``default``: numpy scalars and arrays, and paths, as plain JSON values."""
     if isinstance(x, np.generic):
         return x.item()
     if isinstance(x, np.ndarray):

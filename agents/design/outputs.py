@@ -12,6 +12,7 @@ from typing import Any
 import numpy as np
 
 from agents.design.space import P_TILDE_MAX, RAMP_STEPS, WINDOW_POINTS, design_config
+from agents.scripted import jsonable
 from pneunet_env.config import EnvConfig
 
 
@@ -68,7 +69,7 @@ def write_outputs(spec, result: dict[str, Any], base: EnvConfig) -> None:
     out = spec.out
     for row in result["designs"]:
         write_design(out / "designs" / f"{row['label']}.yaml", row, base, spec.name)
-    atomic_write_bytes(out / "design.json", (json.dumps(result, indent=1, default=_jsonable) + "\n").encode())
+    atomic_write_bytes(out / "design.json", (json.dumps(result, indent=1, default=jsonable) + "\n").encode())
     try:
         plt = _plt()
     except ImportError:
@@ -76,16 +77,6 @@ def write_outputs(spec, result: dict[str, Any], base: EnvConfig) -> None:
     plot_pareto(result, out / "pareto.png", plt)
     plot_curves(result, base, out / "curves.png", plt)
     plot_importance(result, out / "importance.png", plt)
-
-
-def _jsonable(x: Any) -> Any:
-    if isinstance(x, np.generic):
-        return x.item()
-    if isinstance(x, np.ndarray):
-        return x.tolist()
-    if isinstance(x, Path):
-        return str(x)
-    raise TypeError(f"cannot write {type(x).__name__} to JSON")
 
 
 def _plt():

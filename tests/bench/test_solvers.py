@@ -80,7 +80,7 @@ def test_default_solver_never_fails_and_is_accurate(quick_run):
 
 @pytest.mark.slow  # the benchmark's end-to-end quick run (its fixture takes 5-11 s)
 def test_hand_scale_scenes_are_solved_like_the_others(quick_run):
-    # issue #12: the catalogue's stiffest (k~ ~ 55 at w kappa_obj = 0.28) and softest corners, through the same
+    # the catalogue's stiffest (k~ ~ 40 at w kappa_obj = 0.33, firm silicone) and softest corners, through the same
     # paths as every scene: every package answer a converged minimum within 1e-9 of the 30-digit reference
     _, _, records, details = quick_run
     scenes = {s["name"]: s for s in details["scenes"]}
@@ -221,8 +221,8 @@ def test_hand_scale_scenes_are_the_catalogues_extreme_corners():
 
 
 def test_package_solver_on_the_stiffest_catalogue_corner_matches_the_reference():
-    """k~ ~ 55 at w kappa_obj = 0.28 (an apple; contact ratio ~9e3): the path the study runs, every answer a converged
-    minimum, all within 1e-9 of the 30-digit reference."""
+    """k~ ~ 40 at w kappa_obj = 0.33 (firm silicone; contact ratio ~3e3): the path the study runs, every answer a
+    converged minimum, all within 1e-9 of the 30-digit reference."""
     scene = next(s for s in solvers.make_scenes(quick=True) if s.name == "hand stiff")
     k, c = scene.object_stiffness, scene.object_curvature
     ref = solvers.reference_states(scene.pressures, k, c, scene.params)
