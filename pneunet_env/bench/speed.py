@@ -339,8 +339,15 @@ def _machine() -> dict[str, Any]:
     if HAVE_NUMBA:
         import numba
 
+        from pneunet_env.physics.batched import TBB_LOADED
+
         info["numba"] = numba.__version__
         info["numba_threads"] = numba.get_num_threads()
+        try:  # the layer the parallel loops ran on (after the runs: it is chosen at the first one)
+            info["threading_layer"] = numba.threading_layer()
+        except ValueError:
+            info["threading_layer"] = None
+        info["tbb_loaded"] = TBB_LOADED
     return info
 
 
@@ -402,7 +409,8 @@ def format_table(res: dict[str, Any]) -> str:
     m = res["machine"]
     lines = [
         f"PneuNetGrasp-v0 speed ({'quick' if res['quick'] else 'full'} run; backend {res['backend']}; "
-        f"{m['cpus']} CPUs; numpy {m['numpy']}, gymnasium {m['gymnasium']}, numba {m['numba']})",
+        f"{m['cpus']} CPUs; numpy {m['numpy']}, gymnasium {m['gymnasium']}, numba {m['numba']}; threading layer "
+        f"{m.get('threading_layer') or 'none run'})",
         "",
         "single env: median env.step (gym.make, default wrappers)",
         f"  {'PneuNetGrasp-v0':<22}{s['median_step_s']['PneuNetGrasp-v0'] * 1e6:>10.2f} us",
