@@ -55,6 +55,7 @@ def test_scripted_policies_are_deterministic_and_in_the_action_space(spec):
     assert state is None
 
 
+@pytest.mark.slow  # a few seconds: the quick loop stays under a minute
 @pytest.mark.parametrize("spec", ["best-ramp", "step:target_kpa=20"])
 def test_scripted_episodes_repeat_exactly(spec):
     entry = make_policy(spec)

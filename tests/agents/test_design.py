@@ -97,6 +97,7 @@ def test_study_with_the_embedded_storage_then_resumed(tmp_path, capsys):
         main(["--trials", "5", "--out", str(out), *SMALL[:-4]])
 
 
+@pytest.mark.slow  # a few seconds: the quick loop stays under a minute
 def test_journal_storage_and_export(tmp_path):
     out = tmp_path / "j"
     exp = tmp_path / "designed.yaml"

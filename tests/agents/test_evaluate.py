@@ -26,6 +26,7 @@ def _headless_matplotlib(monkeypatch):
     monkeypatch.setenv("MPLBACKEND", "Agg")
 
 
+@pytest.mark.slow  # a few seconds: the quick loop stays under a minute
 def test_evaluate_tiny_grid_writes_rows_and_both_pngs(tmp_path, capsys):
     pytest.importorskip("matplotlib")
     policies = ["ramp", "step", "best-ramp", "oracle", "rigid"]

@@ -46,6 +46,7 @@ def test_blocked_fraction_rises_with_the_modulus_and_crosses_one_half():
     assert (phi[:, 0] < 0.5).all() and (phi[:, -1] > 0.5).all()  # both regimes lie on the map
 
 
+@pytest.mark.slow  # a few seconds: the quick loop stays under a minute
 def test_map_command_on_a_tiny_grid(tmp_path, capsys):
     pytest.importorskip("matplotlib")
     args = ["map", "--grid", "3", "2", "--episodes", "1", "--density", "1000", "30", "--out", str(tmp_path),

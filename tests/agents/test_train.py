@@ -136,6 +136,7 @@ def test_project_file_is_optional_and_rl_zoo3_values_are_read(tmp_path):
 # ---------------------------------------------------------------------------------------------
 
 
+@pytest.mark.slow  # a few seconds: the quick loop stays under a minute
 def test_pneunet_env_wrappers_imports_without_sb3_or_torch():
     code = (
         "import sys\n"
@@ -339,6 +340,7 @@ def _smoke(run_dir: Path, timesteps: int, vec_env: str, extra=(), config: Path =
                  "--vec-env", vec_env, "--no-progress", *extra])
 
 
+@pytest.mark.slow  # a few seconds: the quick loop stays under a minute
 @pytest.mark.filterwarnings("ignore::UserWarning")
 def test_smoke_train_resume_export(tmp_path):
     pytest.importorskip("stable_baselines3")

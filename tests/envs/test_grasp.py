@@ -188,6 +188,7 @@ def test_bad_actions_are_named(action, error, match):
 # ---- many random steps --------------------------------------------------------------------------------------
 
 
+@pytest.mark.slow  # a few seconds: the quick loop stays under a minute
 def test_20000_random_steps_converge_without_nan():
     env = gym.make("PneuNetGrasp-Paper-v0", info_level="full", observe_volume=True)
     env.action_space.seed(0)

@@ -69,6 +69,7 @@ def _assert_same(a, b, where: str) -> None:
 # ---- N single envs == one vector env of N ------------------------------------------------------------------
 
 
+@pytest.mark.slow  # a few seconds: the quick loop stays under a minute
 @pytest.mark.parametrize("backend", BACKENDS)
 def test_vector_env_equals_n_single_envs_with_auto_resets(backend):
     """The brief's check, written out: N gym.make envs seeded s+i, each reset when its episode ends."""

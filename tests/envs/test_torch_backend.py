@@ -84,7 +84,7 @@ def _host(x):
 
 
 @pytest.mark.parametrize("env_id,mode", [
-    ("PneuNetGrasp-v0", "SameStep"),
+    pytest.param("PneuNetGrasp-v0", "SameStep", marks=pytest.mark.slow),  # 10 s: every param runs in CI
     pytest.param("PneuNetGrasp-v0", "NextStep", marks=pytest.mark.slow),
     pytest.param("PneuNetGrasp-Paper-v0", "SameStep", marks=pytest.mark.slow),
 ])
@@ -171,6 +171,7 @@ def test_torch_vector_env_renders_and_reports_objects():
     assert isinstance(env.unwrapped.equilibrium(1).curvature, float)
 
 
+@pytest.mark.slow  # a few seconds: the quick loop stays under a minute
 def test_the_gpu_form_of_the_masked_solver_equals_the_cpu_form():
     """What a GPU runs (no compaction of finished envs, a live check every 8 rounds) gives the CPU form's answers on the
     CPU: the same path (iterations, sub-steps, snaps, status) and the same states to the last bits (an AVX2 machine

@@ -180,6 +180,7 @@ def test_broadcasting_and_fresh_arrays(backend):
         B.solve_batch(float("nan"), 0.0, 0.0, 0.3, backend=backend, validate=False)
 
 
+@pytest.mark.slow  # a few seconds: the quick loop stays under a minute
 def test_backends_agree_on_a_long_random_walk():
     """Episodes of env-like random pressure steps, all envs advanced together on both back-ends."""
     rng = np.random.default_rng(7)
