@@ -28,8 +28,8 @@ import numpy as np
 
 from pneunet_env.config import EnvConfig, load_config
 
-__all__ = ["BatchOutcome", "RampGrid", "run_batch", "run_policy", "batchable", "ramp_actions", "ramp_grid",
-           "duration_invariance", "episode_seeds", "HELD_OUT_SEED"]
+__all__ = ["BatchOutcome", "RampGrid", "run_batch", "run_policy", "policy_episodes", "batchable", "draw_objects",
+           "ramp_actions", "ramp_grid", "duration_invariance", "episode_seeds", "HELD_OUT_SEED"]
 
 HELD_OUT_SEED = 1_000_000_000
 """Offset of held-out objects' seeds (``agents.evaluate.HELD_OUT_SEED``): disjoint from the search's."""
@@ -313,3 +313,41 @@ def run_policy(entry, config: EnvConfig, seeds: Sequence[int], backend: str = "a
         return np.clip((targets - p) / pol.step_fraction, -1.0, 1.0)[..., None].astype(np.float32)
 
     return run_batch(cfg, seeds, act, backend=backend, begin=begin, options=options)
+
+
+def policy_episodes(entry, config: EnvConfig, seeds: Sequence[int], options: dict[str, Any] | None = None,
+                    bar=None) -> list[dict[str, Any]]:
+    """One episode of ``entry``'s policy per seed, as :func:`agents.evaluate.run_episode` reports them: batched
+    where the policy allows (:func:`batchable`), else episode by episode on ``entry.make_env(config)``; the same
+    episodes either way. ``options``: the reset's pins, a value per seed (``(M,)``) or one for all; ``bar``: a
+    progress bar, advanced by one per episode."""
+    if batchable(entry):
+        out = run_policy(entry, config, seeds, options=options).episodes()
+        if bar is not None:
+            bar.update(len(out))
+        return out
+    from agents.evaluate import run_episode
+
+    env = entry.make_env(config)
+    out = []
+    try:
+        for i, s in enumerate(seeds):
+            pins = None if options is None else {
+                k: (float(np.asarray(v)[i]) if np.ndim(v) == 1 else v) for k, v in options.items()}
+            out.append(run_episode(env, entry.policy, int(s), pins))
+            if bar is not None:
+                bar.update()
+    finally:
+        env.close()
+    return out
+
+
+def draw_objects(config: EnvConfig, seeds: Sequence[int]):
+    """The objects ``reset(seed=s)`` draws for each seed under ``config`` (a :class:`~pneunet_env.objects.GraspObject`
+    of ``(M,)`` arrays): one vector env reset, no step."""
+    env = _vector_env(config, len(seeds), "auto", None)
+    try:
+        env.reset(seed=[int(s) for s in seeds])
+        return env.objects
+    finally:
+        env.close()

@@ -141,25 +141,16 @@ def evaluate_policies(entries, config: EnvConfig, grid, episodes: int, seed: int
     if int(episodes) != episodes or episodes < 1:
         raise ValueError(f"episodes must be an integer >= 1, got {episodes!r}")
     bar = progress_bar(total=len(entries) * len(grid) * episodes, desc="evaluate", unit="episode", enabled=progress)
-    from agents.batch import batchable, run_policy
+    from agents.batch import policy_episodes
 
     rows = []
     for entry in entries:
-        batched = None
-        if batchable(entry):  # every grid point and episode in one vector env run (the same episodes)
-            seeds = [episode_seed(seed, i, e) for i in range(len(grid)) for e in range(episodes)]
-            ks = np.repeat(np.asarray(grid, dtype=float), episodes)
-            batched = run_policy(entry, config, seeds, options={"object_stiffness": ks}).episodes()
-            bar.update(len(seeds))
-        env = None if batched is not None else entry.make_env(config)
+        # every grid point and episode in one vector env run where the policy allows it (the same episodes)
+        seeds = [episode_seed(seed, i, e) for i in range(len(grid)) for e in range(episodes)]
+        ks = np.repeat(np.asarray(grid, dtype=float), episodes)
+        done = policy_episodes(entry, config, seeds, {"object_stiffness": ks}, bar)
         for i, k in enumerate(grid):
-            res = []
-            for e in range(episodes):
-                if batched is not None:
-                    res.append(batched[i * episodes + e])
-                    continue
-                res.append(run_episode(env, entry.policy, episode_seed(seed, i, e), {"object_stiffness": float(k)}))
-                bar.update()
+            res = done[i * episodes:(i + 1) * episodes]
             rows.append({
                 "policy": entry.name,
                 "label": entry.label,
@@ -173,8 +164,6 @@ def evaluate_policies(entries, config: EnvConfig, grid, episodes: int, seed: int
                 "object_shear_modulus_kpa": float(np.mean([r["shear_modulus_kpa"] for r in res])),
                 "solver_failures": int(sum(r["solver_failed"] for r in res)),
             })
-        if env is not None:
-            env.close()
     bar.close()
     return rows
 
@@ -189,20 +178,11 @@ def evaluate_distribution(entries, config: EnvConfig, n_objects: int, seed: int 
     ``HELD_OUT_SEED + seed * 1_000_003 + i``): ``{policy: {success_rate, damage_rate, slip_rate, objects, ...}}``."""
     seeds = [HELD_OUT_SEED + seed * 1_000_003 + i for i in range(n_objects)]
     bar = progress_bar(total=len(entries) * n_objects, desc="distribution", unit="episode", enabled=progress)
-    from agents.batch import batchable, run_policy
+    from agents.batch import policy_episodes
 
     out = {}
     for entry in entries:
-        if batchable(entry):  # one vector env run, the same episodes
-            res = run_policy(entry, config, seeds).episodes()
-            bar.update(len(seeds))
-        else:
-            env = entry.make_env(config)
-            res = []
-            for s in seeds:
-                res.append(run_episode(env, entry.policy, s))
-                bar.update()
-            env.close()
+        res = policy_episodes(entry, config, seeds, bar=bar)  # batched where the policy allows: the same episodes
         k = np.array([r["stiffness"] for r in res])
         ok = np.array([r["success"] for r in res])
         out[entry.name] = {

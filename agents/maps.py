@@ -55,7 +55,7 @@ from pneunet_env.cli.progress import add_progress_argument
 from pneunet_env.cli.progress import progress as progress_bar
 from pneunet_env.config import EnvConfig, load_config
 
-__all__ = ["ROLES", "map_config", "task_config", "parse_set_options", "object_options", "make_entries",
+__all__ = ["ROLES", "map_config", "task_config", "object_options", "make_entries",
            "default_jaw_nominal_mm", "jaw_config", "blocked_fraction_grid", "success_map", "summarize", "plot_map",
            "add_arguments", "run"]
 
@@ -107,23 +107,6 @@ def task_config(config: ConfigSource = None, overrides: dict[str, Any] | None = 
     """The task the blind policies were tuned on: the default task (objects from the catalogue), with ``config`` and
     ``overrides`` on top (as :func:`map_config`'s, here all of them, objects included)."""
     return load_config(config, **(overrides or {}))
-
-
-def parse_set_options(items) -> dict[str, Any]:
-    """``--set KEY=VALUE`` options -> a dict (:func:`agents.evaluate.parse_overrides`, VALUE read as YAML), with a
-    one-line ``ValueError`` naming the option where VALUE is not valid YAML (``x=[``)."""
-    import yaml
-
-    from agents.evaluate import parse_overrides
-
-    out: dict[str, Any] = {}
-    for item in items or []:
-        try:
-            out.update(parse_overrides([item]))
-        except yaml.YAMLError as exc:
-            why = getattr(exc, "problem", None) or str(exc).splitlines()[0]
-            raise ValueError(f"--set {item!r}: VALUE is not valid YAML ({why})") from None
-    return out
 
 
 def object_options(youngs_modulus_kpa: float, radius_mm: float, density_kg_m3: float = 1000.0,
@@ -604,6 +587,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    from agents.evaluate import parse_overrides
+
     ne, nr = args.grid
     try:
         if ne < 1 or nr < 1:
@@ -613,7 +598,7 @@ def run(args: argparse.Namespace) -> int:
             raise ValueError("--e-range and --r-range need 0 < LO <= HI")
         if any(d <= 0 for d in args.density) or not args.failure_strain > 0:
             raise ValueError("--density and --failure-strain must be > 0")
-        overrides = parse_set_options(args.overrides)
+        overrides = parse_overrides(args.overrides)
         config = map_config(args.config, overrides, radius_range_mm=(r0, r1))
         task = task_config(args.config, overrides)
         E = np.logspace(math.log10(e0), math.log10(e1), ne) if ne > 1 else np.array([math.sqrt(e0 * e1)])

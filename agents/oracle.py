@@ -36,6 +36,11 @@ GRID_POINTS = 120
 """The oracle's pressure grid: ``max_pressure_kpa / 120`` apart by default (0.5 kPa at 60 kPa)."""
 
 
+def default_resolution(config: EnvConfig) -> float:
+    """The oracle's default pressure grid spacing (kPa): ``max_pressure_kpa /`` :data:`GRID_POINTS`."""
+    return config.task.max_pressure_kpa / GRID_POINTS
+
+
 class OraclePlan(dict):
     """The oracle's choice for one object: ``target`` (fraction of ``p_max``), ``pressure_kpa``, ``margin``
     (natural log; > 0 is feasible), ``feasible`` (bool), ``grip_ratio``, ``damage_ratio`` at the target."""
@@ -61,8 +66,7 @@ def plan_target(
         resolution_kpa: the pressure grid's spacing; ``None``: ``max_pressure_kpa / 120`` (:data:`GRID_POINTS`;
             0.5 kPa at the default 60 kPa), so a soft actuator's few kPa get as fine a grid as Table 1's.
     """
-    if resolution_kpa is None:
-        resolution_kpa = config.task.max_pressure_kpa / GRID_POINTS
+    resolution_kpa = default_resolution(config) if resolution_kpa is None else resolution_kpa
     if not resolution_kpa > 0.0:
         raise ValueError(f"resolution_kpa must be > 0, got {resolution_kpa!r}")
     p_max = config.pressure_max
@@ -125,8 +129,7 @@ class Oracle:
 
     def __init__(self, config: EnvConfig | None = None, resolution_kpa: float | None = None) -> None:
         self.config = EnvConfig() if config is None else config
-        self.resolution_kpa = float(self.config.task.max_pressure_kpa / GRID_POINTS if resolution_kpa is None
-                                    else resolution_kpa)
+        self.resolution_kpa = float(default_resolution(self.config) if resolution_kpa is None else resolution_kpa)
         self.step_fraction = self.config.task.max_pressure_step_kpa / self.config.task.max_pressure_kpa
         self.plan: OraclePlan | None = None
         self._cache: dict[tuple[float, ...], OraclePlan] = {}

@@ -21,7 +21,7 @@ from agents.design.space import (
     perturbed_config,
     table1_design,
 )
-from pneunet_env.config import EnvConfig, load_config
+from pneunet_env.config import EnvConfig
 
 
 def _rate(ok: np.ndarray, mask: np.ndarray) -> float:
@@ -90,13 +90,12 @@ def _error_draws(seed: int, n_objects: int) -> tuple[np.ndarray, np.ndarray]:
 
 def reference_regimes(seeds: Sequence[int], base: EnvConfig | None = None) -> np.ndarray:
     """Table 1's regime of each object of ``seeds`` (the same physical objects for every design)."""
-    from agents.batch import ramp_grid
+    from agents.batch import draw_objects
     from agents.evaluate import object_regimes
 
-    cfg = load_config(base) if base is not None else EnvConfig()
-    cfg = design_config(table1_design(), cfg)
-    o = ramp_grid(cfg, seeds, [1e-6], 1).outcome  # a reset is all it takes; one step of a near-zero ramp
-    return object_regimes(o.stiffness, o.curvature, cfg)
+    cfg = design_config(table1_design(), base)
+    obj = draw_objects(cfg, seeds)  # a reset is all it takes
+    return object_regimes(obj.stiffness, obj.curvature, cfg)
 
 
 def evaluate_design(params: Mapping[str, Any], seeds: Sequence[int], reference: np.ndarray,

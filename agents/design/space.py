@@ -137,7 +137,7 @@ def design_config(params: Mapping[str, Any], base: EnvConfig | None = None) -> E
     p = dict(params)
     name = p.pop("elastomer", None)
     if name is not None:
-        table = {TABLE1_ELASTOMER.name: TABLE1_ELASTOMER} if name == TABLE1_ELASTOMER.name else elastomers()
+        table = elastomers()
         if name not in table:
             raise ValueError(f"unknown elastomer {name!r}; valid: {', '.join(table)}")
         p["shear_modulus_kpa"] = table[name].shear_modulus_kpa

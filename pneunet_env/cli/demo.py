@@ -69,8 +69,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from agents.evaluate import SOFT_MAX, STIFF_MIN, run_episode
-    from agents.maps import parse_set_options
+    from agents.evaluate import SOFT_MAX, STIFF_MIN, parse_overrides, run_episode
     from agents.oracle import feasible_stiffness
     from agents.policies import make_policy
     from pneunet_env import PAPER_TASK
@@ -82,7 +81,7 @@ def run(args: argparse.Namespace) -> int:
     if not 0.0 < args.k_min < args.k_max:
         raise SystemExit(f"need 0 < --k-min < --k-max, got {args.k_min} and {args.k_max}")
     try:
-        overrides = parse_set_options(args.overrides)
+        overrides = parse_overrides(args.overrides)
         cfg = load_config(args.config, **{**(PAPER_TASK if args.task == "paper" else {}), **overrides})
         specs = list(args.policy or DEFAULT_POLICIES)
         for t in args.targets_kpa:
@@ -195,8 +194,8 @@ def _outcome(rs) -> str:
 
 def _run_distribution(args: argparse.Namespace, cfg, entries) -> int:
     """The default task: objects drawn by the env; success by regime and by class, policy by policy."""
-    from agents.batch import batchable, run_policy
-    from agents.evaluate import HELD_OUT_SEED, object_regimes, run_episode
+    from agents.batch import policy_episodes
+    from agents.evaluate import HELD_OUT_SEED, object_regimes
     from pneunet_env.physics.regimes import REGIMES
 
     short = _short_names(e.name for e in entries)
@@ -205,19 +204,8 @@ def _run_distribution(args: argparse.Namespace, cfg, entries) -> int:
     t0 = time.perf_counter()
     bar = progress(total=len(entries) * len(seeds), desc="demo", unit="episode", enabled=args.progress)
     results: dict[str, list[dict]] = {}
-    for entry in entries:
-        if batchable(entry):  # every object at once, one vector env run (the single env's outcomes)
-            results[entry.name] = run_policy(entry, cfg, seeds).episodes()
-            bar.update(len(seeds))
-            continue
-        env = entry.make_env(cfg)
-        rs = []
-        for s in seeds:
-            r = run_episode(env, entry.policy, seed=s)
-            rs.append(r)
-            bar.update()
-        env.close()
-        results[entry.name] = rs
+    for entry in entries:  # batched where the policy allows (agents.batch): the same episodes
+        results[entry.name] = policy_episodes(entry, cfg, seeds, bar=bar)
     bar.close()
     first = results[entries[0].name]
     reg = object_regimes([r["stiffness"] for r in first], [r["curvature"] for r in first], cfg)

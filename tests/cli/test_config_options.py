@@ -8,7 +8,8 @@ from pathlib import Path
 
 import pytest
 
-from agents.maps import map_config, parse_set_options, task_config
+from agents.evaluate import parse_overrides
+from agents.maps import map_config, task_config
 from agents.policies import BEST_RAMP_PATH, BEST_RIGID_PATH, make_policy, tuned_path
 from pneunet_env.cli import main
 from pneunet_env.config import load_config
@@ -50,10 +51,10 @@ def test_bad_option_is_a_one_line_error_naming_it(command, case, tmp_path):
     assert not (tmp_path / "out").exists()  # nothing ran
 
 
-def test_parse_set_options_reads_yaml_values():
-    assert parse_set_options(["a=1.5", "b=[1, 2]", "c=true", "d=null"]) == {"a": 1.5, "b": [1, 2], "c": True,
+def test_parse_overrides_reads_yaml_values():
+    assert parse_overrides(["a=1.5", "b=[1, 2]", "c=true", "d=null"]) == {"a": 1.5, "b": [1, 2], "c": True,
                                                                             "d": None}
-    assert parse_set_options([]) == {} and parse_set_options(None) == {}
+    assert parse_overrides([]) == {} and parse_overrides(None) == {}
 
 
 # ------------------------------------------------------------------------------------------------ the map's config
