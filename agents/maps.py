@@ -28,15 +28,19 @@ past that task's nominal object (R = 27.5 mm by default, ``--jaw-nominal-mm``; :
 where it was tuned to stop: a blind jaw meets every object at the same place. Every policy sees the same seeds
 (``seed * 1000003 + 1000 * cell + episode``).
 
-Drawn on every panel: the **regime boundary** ``phi = 1/2`` (:func:`pneunet_env.physics.regimes.blocked_fraction`
-at ``p_max``; force-controlled on the soft side, position-controlled on the stiff side), the **feasible window**
-(the cells where the oracle succeeds) and the catalogue classes of the default use case (``E`` range x radius range;
-only locators: the map's objects have the thresholds above, not each class's own). Failing cells are marked ``d``
-(damaged) or ``s`` (slipped). With more than one ``--density``, a second row charts ``E`` x density at one radius
-(``--density-radius``, default 25 mm): slip needs friction to carry the weight ``rho g H``.
+Drawn on every panel: the **regime boundary** ``phi = 1/2`` (:data:`PHI_DEFINITION`: ``phi``,
+:func:`pneunet_env.physics.regimes.blocked_fraction` at ``p_max``, is the share of the curl the free finger would
+make past the object's surface that the object blocks; force-controlled on the soft side, position-controlled on the
+stiff side), the **feasible window** (the cells where the oracle succeeds) and the catalogue classes of the use case
+the blind policies were tuned on (``E`` range x radius range; only locators: the map's objects have the thresholds
+above, not each class's own). The figure and the printed summary say this in words, and name the damage rule.
+Failing cells are marked ``d`` (damaged) or ``s`` (slipped). With more than one ``--density``, a second row charts
+``E`` x density at one radius (``--density-radius``, default 25 mm; an error with one density): slip needs friction
+to carry the weight ``rho g H``.
 
-Writes ``DIR/map.json`` (:func:`success_map`'s result) and ``DIR/map.png`` (:func:`plot_map`); prints a summary:
-each policy's success inside the window, on its force-controlled and its position-controlled side.
+Writes ``DIR/map.json`` (:func:`success_map`'s result) and ``DIR/map.png`` (:func:`plot_map`; it needs matplotlib,
+extra ``plot``, checked before any episode runs; ``--no-plot`` does without); prints a summary: each policy's
+success inside the window, on its force-controlled and its position-controlled side.
 """
 
 from __future__ import annotations
@@ -57,7 +61,7 @@ from pneunet_env.config import EnvConfig, load_config
 
 __all__ = ["ROLES", "map_config", "task_config", "object_options", "make_entries",
            "default_jaw_nominal_mm", "jaw_config", "blocked_fraction_grid", "success_map", "summarize", "plot_map",
-           "add_arguments", "run"]
+           "phi_definition", "PHI_DEFINITION", "add_arguments", "run"]
 
 RIGID_ENV = "RigidGrasp-v0"
 
@@ -68,9 +72,25 @@ THICKNESS_RATIO = 0.25
 """``H = R/4``: the compliant depth as a fraction of the radius."""
 
 E_RANGE_KPA = (0.1, 5000.0)
+DENSITY_RADIUS_MM = 25.0
 R_RANGE_MM = (15.0, 40.0)
 PHI_FINE = (64, 40)
 """The regime boundary is contoured on a finer grid than the episodes (E points, R points)."""
+
+
+def phi_definition(pressure_kpa: float) -> str:
+    """The regime boundary's terms in words (the figure's footnote, the summary's, ``map.json``'s
+    ``regime_boundary``): what ``phi`` is (:func:`pneunet_env.physics.regimes.blocked_fraction`) and which side is
+    which."""
+    return (f"regime boundary: phi = 1/2, where phi (blocked_fraction) is the share of the curl the free finger would "
+            f"make past the object's surface that the object blocks, loaded to {pressure_kpa:g} kPa; "
+            "force-controlled on the soft side (phi < 1/2: the object gives way and the finger curls on into it), "
+            "position-controlled on the stiff side (phi >= 1/2: the object holds the finger's curvature close to "
+            "its own)")
+
+
+PHI_DEFINITION = phi_definition(60.0)
+"""The definition at the default maximum pressure."""
 
 
 # ---------------------------------------------------------------------------------------------
@@ -208,10 +228,15 @@ def _grid_lists(a: np.ndarray) -> list:
     return [[None if not math.isfinite(x) else float(x) for x in row] for row in np.atleast_2d(a)]
 
 
-def _catalogue_boxes() -> list[dict[str, Any]]:
+def _catalogue_boxes(task: EnvConfig | None = None) -> list[dict[str, Any]]:
+    """The class boxes of the catalogue classes ``task`` draws (default: the default use case's); none where its
+    objects come from ranges (the paper's 250 mm ring lies off the map)."""
     from pneunet_env.catalogue import load_catalogue, use_case_weights
 
-    classes, weights = load_catalogue(), use_case_weights()
+    if task is not None and not task.objects.from_catalogue:
+        return []
+    classes = load_catalogue()
+    weights = use_case_weights() if task is None else dict(task.objects.class_items)
     return [{"name": n, "weight": w, "youngs_modulus_kpa": list(classes[n].youngs_modulus_kpa),
              "radius_mm": list(classes[n].radius_mm), "thickness_mm": list(classes[n].thickness_mm),
              "density_kg_m3": list(classes[n].density_kg_m3), "failure_strain": list(classes[n].failure_strain)}
@@ -241,8 +266,9 @@ def success_map(E_grid, R_grid, density_kg_m3: float = 1000.0, failure_strain: f
     Returns a JSON-able dict: ``youngs_modulus_kpa``, ``radius_mm`` (the grids); ``policies`` ``{role: {spec,
     label, env_id, blind, success, damage, slip, solver_failures}}`` with ``(nR, nE)`` rate arrays as nested lists;
     ``phi`` on the cells, ``phi_fine`` (a finer grid for the contour), ``window`` (the oracle's successes, as 0/1),
-    ``summary`` (:func:`summarize`), ``catalogue`` (the default use case's class boxes), ``density_row`` (or
-    ``None``), the settings and the config.
+    ``summary`` (:func:`summarize`), ``catalogue`` (the class boxes of the task the blind policies were tuned on),
+    ``density_row`` (or ``None``), the settings (``damage``, ``regime_boundary`` and ``task`` in words) and the
+    config.
     """
     if int(episodes) != episodes or episodes < 1:
         raise ValueError(f"episodes must be an integer >= 1, got {episodes!r}")
@@ -252,6 +278,9 @@ def success_map(E_grid, R_grid, density_kg_m3: float = 1000.0, failure_strain: f
         raise ValueError("E_grid and R_grid must be non-empty 1-d sequences of positive numbers")
     dens = sorted(float(d) for d in densities) if densities is not None and len(densities) > 1 else None
     config = map_config() if config is None else config
+    task_cfg = load_config() if task is None else task
+    from agents.evaluate import damage_rule_text, task_description
+
     t0 = time.perf_counter()
     entries = make_entries(config, blind, rigid, task, config_path)
     rigid_config = jaw_config(config, jaw_nominal_mm, task)
@@ -291,6 +320,9 @@ def success_map(E_grid, R_grid, density_kg_m3: float = 1000.0, failure_strain: f
         "failure_strain": float(failure_strain),
         "failure_stress_rule": "3 eps_f mu_obj (objects from ranges)",
         "damage_rule": config.task.damage_rule,
+        "damage": damage_rule_text(config),
+        "regime_boundary": phi_definition(config.task.max_pressure_kpa),
+        "task": task_description(task_cfg),
         "episodes": int(episodes),
         "seed": int(seed),
         "episode_seeds": "seed * 1000003 + 1000 * cell + episode, cell = i_R * n_E + i_E (density row: after them)",
@@ -301,7 +333,7 @@ def success_map(E_grid, R_grid, density_kg_m3: float = 1000.0, failure_strain: f
         "regime_pressure_kpa": config.task.max_pressure_kpa,
         "jaw_nominal_radius_mm": 1e3 / rigid_config.objects.object_curvature_per_m[0],
         "window": _grid_lists((rates["oracle"]["success"].reshape(shape) >= 0.5).astype(float)),
-        "catalogue": _catalogue_boxes(),
+        "catalogue": _catalogue_boxes(task_cfg),
         "density_row": None,
     }
     if dens:
@@ -467,27 +499,51 @@ def plot_map(result: dict[str, Any], path: str | Path) -> Path:
     fig.colorbar(mesh, cax=cax).set_label("success rate (held to the end, intact)", fontsize=8)
     if row:
         _density_row(fig, gs, row, E, roles, cmap, result)
-    handles = [Line2D([], [], color="black", ls="--", lw=1.6),
-               Line2D([], [], color=_WINDOW_COLOUR, lw=2.4),
-               Patch(fill=False, ec=_CLASS_COLOUR, ls=":", lw=1.3),
-               Line2D([], [], ls="", marker="$d$", color="#5a1010", ms=7),
-               Line2D([], [], ls="", marker="$s$", color="#6a4a00", ms=7)]
-    labels = [f"regime boundary phi = 1/2 at {result['regime_pressure_kpa']:g} kPa (force- | position-controlled)",
-              "feasible window: where the oracle succeeds",
-              "catalogue class, default use case (E x R box)",
-              "failed: damaged (crushed or overstressed)", "failed: slipped (dropped)"]
-    fig.legend(handles, labels, loc="lower center", ncol=3, fontsize=8, frameon=False, bbox_to_anchor=(0.5, 0.0))
-    fig.suptitle(f"Grasp success over object modulus x radius: {result['thickness_rule']}, "
-                 f"rho = {result['density_kg_m3']:g} kg/m^3, "
-                 f"failure strain {result['failure_strain']:g}, failure stress 3 eps_f mu_obj "
-                 f"({result['damage_rule']} rule), {result['episodes']} episode(s) per cell", fontsize=10)
+    handles, labels = _legend(result, Line2D, Patch)
     inch = 1.0 / fig.get_figheight()
-    fig.subplots_adjust(left=0.05, right=0.955, top=1.0 - 1.05 * inch, bottom=1.05 * inch)
+    fig.legend(handles, labels, loc="lower center", ncol=3, fontsize=8, frameon=False,
+               bbox_to_anchor=(0.5, 0.42 * inch))
+    fig.text(0.5, 0.1 * inch, _caption(result), ha="center", va="bottom", fontsize=8, wrap=False)
+    fig.suptitle(_suptitle(result), fontsize=9.5)
+    fig.subplots_adjust(left=0.05, right=0.955, top=1.0 - 1.25 * inch, bottom=1.45 * inch)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=120)
     plt.close(fig)
     return path
+
+
+def _legend(result: dict[str, Any], Line2D, Patch) -> tuple[list, list[str]]:
+    """The figure's legend: the boundary, the window, the classes (if any), the failure marks."""
+    handles = [Line2D([], [], color="black", ls="--", lw=1.6), Line2D([], [], color=_WINDOW_COLOUR, lw=2.4)]
+    labels = [f"regime boundary phi = 1/2 at {result['regime_pressure_kpa']:g} kPa: force-controlled left, "
+              "position-controlled right", "feasible window: where the oracle succeeds"]
+    if result.get("catalogue"):
+        handles.append(Patch(fill=False, ec=_CLASS_COLOUR, ls=":", lw=1.3))
+        labels.append(f"catalogue class (E x R box) of {_use_case(result)}")
+    handles += [Line2D([], [], ls="", marker="$d$", color="#5a1010", ms=7),
+                Line2D([], [], ls="", marker="$s$", color="#6a4a00", ms=7)]
+    labels += ["failed: damaged (crushed or overstressed)", "failed: slipped (dropped)"]
+    return handles, labels
+
+
+def _use_case(result: dict[str, Any]) -> str:
+    """``"the catalogue's 'kitchen' use case"``: the task's description up to its weights."""
+    return str(result.get("task", "the default use case")).split(" (")[0]
+
+
+def _caption(result: dict[str, Any]) -> str:
+    """The footnote under the legend: the regime boundary's terms, in words, on two lines."""
+    text = result.get("regime_boundary") or phi_definition(result["regime_pressure_kpa"])
+    head, _, sides = text.partition("; ")
+    return f"{head};\n{sides}"
+
+
+def _suptitle(result: dict[str, Any]) -> str:
+    damage = result.get("damage") or f"{result['damage_rule']} rule"
+    return (f"Grasp success over object modulus x radius: {result['thickness_rule']}, rho = "
+            f"{result['density_kg_m3']:g} kg/m^3, failure strain eps_f = {result['failure_strain']:g}, "
+            f"{result['episodes']} episode(s) per cell; blind policies tuned on {_use_case(result)}\n{damage}")
 
 
 def _title(role: str, p: dict[str, Any], result: dict[str, Any]) -> str:
@@ -562,8 +618,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--density", type=float, nargs="+", default=[1000.0, 300.0, 30.0], metavar="RHO",
                         help="object density, kg/m^3: the first is the map's; with more, a second row charts "
                              "E x density at --density-radius (default 1000 300 30)")
-    parser.add_argument("--density-radius", type=float, default=25.0, help="radius of the density row, mm "
-                                                                           "(default 25)")
+    parser.add_argument("--density-radius", type=float, default=None,
+                        help=f"radius of the density row, mm (default {DENSITY_RADIUS_MM:g}; needs two or more "
+                             "--density)")
     parser.add_argument("--failure-strain", type=float, default=0.3, help="object failure strain (default 0.3); "
                                                                           "failure stress 3 eps_f mu_obj")
     parser.add_argument("--blind", default="best-ramp", metavar="SPEC",
@@ -582,13 +639,20 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                         help="override an environment config key, on top of --config (repeatable; VALUE is YAML), "
                              "e.g. --set top_thickness_mm=1.5; a schedule beside --config still applies")
-    parser.add_argument("--no-plot", action="store_true", help="skip map.png")
+    parser.add_argument("--no-plot", action="store_true", help="skip map.png (and matplotlib)")
     add_progress_argument(parser)
 
 
 def run(args: argparse.Namespace) -> int:
-    from agents.evaluate import parse_overrides
+    from agents.evaluate import parse_overrides, usage_error
+    from pneunet_env.cli import require_extra
 
+    if args.density_radius is not None and len(args.density) < 2:
+        usage_error("pneunet-grasp map", "--density-radius places the density row, which needs two or more --density "
+                                         "values (e.g. --density 1000 300 30)")
+    density_radius = DENSITY_RADIUS_MM if args.density_radius is None else args.density_radius
+    if not args.no_plot:  # before any episode: not a traceback once the work is done
+        require_extra("map", "matplotlib", "plot", "map.png", skip="--no-plot")
     ne, nr = args.grid
     try:
         if ne < 1 or nr < 1:
@@ -604,7 +668,7 @@ def run(args: argparse.Namespace) -> int:
         E = np.logspace(math.log10(e0), math.log10(e1), ne) if ne > 1 else np.array([math.sqrt(e0 * e1)])
         R = np.linspace(r0, r1, nr) if nr > 1 else np.array([0.5 * (r0 + r1)])
         result = success_map(E, R, args.density[0], args.failure_strain, args.episodes, args.seed, args.progress,
-                             densities=args.density, density_radius_mm=args.density_radius, blind=args.blind,
+                             densities=args.density, density_radius_mm=density_radius, blind=args.blind,
                              rigid=args.rigid, config=config, jaw_nominal_mm=args.jaw_nominal_mm, task=task,
                              config_path=args.config)
     except ValueError as exc:
@@ -630,6 +694,12 @@ def _report(result: dict[str, Any]) -> str:
              f"{result['thickness_rule']}, rho = {result['density_kg_m3']:g} kg/m^3, "
              f"eps_f = {result['failure_strain']:g}), "
              f"{n_ep} episodes in {result['elapsed_s']:.1f} s",
+             f"  {result.get('damage', result['damage_rule'] + ' rule')}",
+             f"  blind policies tuned on {result.get('task', 'the default task')}",
+             f"  {result.get('regime_boundary') or phi_definition(result['regime_pressure_kpa'])}",
+             "  columns: all = every cell; window = the cells where the oracle succeeds; force, position = the "
+             "window's cells on the force- and position-controlled sides of the boundary; grasps both = succeeds on "
+             "some cell of each side",
              f"feasible window (oracle succeeds): {s['window_cells']} of {s['cells']} cells "
              f"({s['window_force_cells']} force-controlled, {s['window_position_cells']} position-controlled)",
              f"  {'policy':<10} {'all':>5} {'window':>7} {'force':>6} {'position':>8} {'grasps both':>12}  label"]

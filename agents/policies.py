@@ -264,6 +264,12 @@ def make_policy(spec: str, config: EnvConfig | None = None, *,
         ValueError: an unknown name, a bad parameter, or a missing model file (named).
     """
     config = EnvConfig() if config is None else config
+    if isinstance(spec, str):
+        from agents.resources import resolve_model
+
+        head, colon, tail = spec.strip().partition(":")
+        if head not in REGISTRY and (shipped := resolve_model(head)) is not None:  # a shipped model, by name
+            spec = f"{shipped}:{tail}" if colon else str(shipped)
     if isinstance(spec, str) and (spec.strip().endswith(".zip") or ".zip:" in spec):
         model, sep, rest = spec.strip().rpartition(".zip:") if ".zip:" in spec else (spec.strip()[:-4], "", "")
         path = Path(model + ".zip")
@@ -280,7 +286,10 @@ def make_policy(spec: str, config: EnvConfig | None = None, *,
                            env_kwargs={"observe_volume": pol.observe_volume})
     name, params = parse_spec(spec)
     if name not in REGISTRY:
-        raise ValueError(f"unknown policy {name!r}; valid: {', '.join(REGISTRY)} or a path to an SB3 model .zip")
+        from agents.resources import model_names
+
+        raise ValueError(f"unknown policy {name!r}; valid: {', '.join(REGISTRY)}, a shipped model "
+                         f"({', '.join(model_names())}) or a path to an SB3 model .zip")
     if config_path is not None and name in _TUNED:
         return REGISTRY[name](spec, dict(params), config, config_path=config_path)
     return REGISTRY[name](spec, dict(params), config)

@@ -15,8 +15,14 @@ The result is written to ``agents/best_ramp.json`` (``--gripper pneunet``, the `
 (:data:`SENSITIVITY_SETTINGS`, :func:`sensitivity_study`): for each setting of the thresholds that decide the
 soft side (object density, friction, the crush rule, object size), a fresh best-ramp and rigid search, then the
 best-ramp, the oracle and the rigid gripper on a stiffness grid. It writes ``DIR/sensitivity.json``,
-``DIR/sensitivity.md`` (a table) and ``DIR/sensitivity.png``. It is a study of the thresholds, *not* the
-environment's defaults: the defaults stay the physically justified ones of ``docs/env.md``.
+``DIR/sensitivity.md`` (a table) and ``DIR/sensitivity.png``. It is a study of the thresholds of the paper's task
+(its 250 mm ring, the crush-fraction rule), *not* the environment's defaults: the defaults stay the physically
+justified ones of ``docs/env.md``. It takes ``--objects``, ``--seed``, ``--grid`` and ``--out``; the search's own
+options (``--gripper``, ``--targets``, ``--durations``, ``--refine``, ``--plot``, ``--config``, ``--set``) are an
+error with it, and ``--grid`` an error without it (exit status 2).
+
+Both print the task they run on (its objects, its damage rule in words). A PNG (``--plot``, ``--sensitivity``) needs
+matplotlib (extra ``plot``), checked before the search starts.
 """
 
 from __future__ import annotations
@@ -33,7 +39,15 @@ from typing import Any
 
 import numpy as np
 
-from agents.evaluate import parse_overrides, run_episode
+from agents.evaluate import (
+    damage_rule_text,
+    parse_overrides,
+    rate_parts,
+    regime_text,
+    run_episode,
+    task_description,
+    usage_error,
+)
 from agents.scripted import LinearRamp, save_ramp
 from pneunet_env import PAPER_TASK
 from pneunet_env.cli.progress import add_progress_argument
@@ -237,7 +251,9 @@ def plot_search(cands: Sequence[Candidate], best: Candidate, path: Path, config:
     ax.set_xlabel(f"ramp target ({unit})")
     ax.set_ylabel("success rate")
     ax.set_title(f"{'rigid jaw' if gripper == 'rigid' else 'pressure'} ramp search: best {best.target * full:.3g} "
-                 f"{unit} over {best.n_steps} steps, success {best.success_rate:.1%}", fontsize=9)
+                 f"{unit} over {best.n_steps} steps, success {best.success_rate:.1%}\non "
+                 f"{task_description(config).split(' (')[0].split(':')[0]}, {config.task.damage_rule} damage rule",
+                 fontsize=9)
     ax.legend(fontsize=7, ncol=2, title="ramp duration", title_fontsize=7)
     ax.grid(True, alpha=0.3)
     fig.tight_layout()
@@ -291,7 +307,7 @@ def sensitivity_study(out: Path, settings=SENSITIVITY_SETTINGS, n_objects: int =
 
     Settings whose object properties are ranges get ``max(episodes, 4)`` episodes per grid point.
     """
-    from agents.evaluate import evaluate_policies, regime_summary, stiffness_grid
+    from agents.evaluate import SOFT_MAX, STIFF_MIN, evaluate_policies, regime_summary, stiffness_grid
     from agents.oracle import Oracle, feasible_stiffness
     from agents.policies import PolicyEntry
     from pneunet_env.envs.rigid import default_jaw_travel_mm
@@ -299,6 +315,10 @@ def sensitivity_study(out: Path, settings=SENSITIVITY_SETTINGS, n_objects: int =
     coarse = tuple(round(0.05 * i, 4) for i in range(1, 21))
     durations = (1, 25, 50)
     results = []
+    paper = load_config(None, **PAPER_TASK)
+    log(f"the threshold sensitivity study of the paper's task ({task_description(paper)}; by default "
+        f"{damage_rule_text(paper)}); success on the paper's k~ bins, soft (k~ < {SOFT_MAX:g}) and stiff "
+        f"(k~ >= {STIFF_MIN:g}), per setting:")
     for key, desc, overrides in settings:
         t0 = time.perf_counter()
         config = load_config(None, **{**PAPER_TASK, **overrides})  # a study of the paper's task
@@ -326,7 +346,7 @@ def sensitivity_study(out: Path, settings=SENSITIVITY_SETTINGS, n_objects: int =
             "regimes": reg, "rows": rows, "elapsed_s": time.perf_counter() - t0,
         }
         results.append(res)
-        rate = lambda p, g: f"{reg[p][g]['success_rate']:4.0%}"  # noqa: E731, B023
+        rate = lambda p, g: _pct(reg[p][g]["success_rate"])  # noqa: E731, B023
         log(f"{key:>18}: best-ramp {res['best_ramp']['target_kpa']:5.1f} kPa soft {rate('best-ramp', 'soft')} stiff "
             f"{rate('best-ramp', 'stiff')} | oracle soft {rate('oracle', 'soft')} stiff {rate('oracle', 'stiff')} | "
             f"rigid {res['rigid']['target_mm']:5.1f} mm soft {rate('rigid', 'soft')} stiff {rate('rigid', 'stiff')}"
@@ -340,6 +360,11 @@ def sensitivity_study(out: Path, settings=SENSITIVITY_SETTINGS, n_objects: int =
     return results
 
 
+def _pct(x: float | None) -> str:
+    """A rate as ``" 95%"``, or ``"   -"`` where there were no objects."""
+    return "   -" if x is None else f"{x:4.0%}"
+
+
 def sensitivity_table(results) -> str:
     """A markdown table: per setting, success on soft / stiff objects for best-ramp, oracle and rigid."""
     lines = [
@@ -349,7 +374,7 @@ def sensitivity_table(results) -> str:
     ]
     for r in results:
         reg = r["regimes"]
-        pct = lambda p, g: f"{reg[p][g]['success_rate']:.0%}"  # noqa: E731, B023
+        pct = lambda p, g: _pct(reg[p][g]["success_rate"]).strip()  # noqa: E731, B023
         lines.append(
             f"| {r['description']} | {r['feasible_stiffness']:.2g} | {r['best_ramp']['target_kpa']:.3g} kPa, "
             f"{r['best_ramp']['n_steps']} steps | {pct('best-ramp', 'soft')} / {pct('best-ramp', 'stiff')} | "
@@ -386,7 +411,8 @@ def plot_sensitivity(results, path: Path) -> Path:
         ax.grid(True, alpha=0.3)
         reg = res["regimes"]["best-ramp"]
         ax.set_title(f"{res['description']}\nbest-ramp {res['best_ramp']['target_kpa']:.3g} kPa: soft "
-                     f"{reg['soft']['success_rate']:.0%}, stiff {reg['stiff']['success_rate']:.0%}", fontsize=7.5)
+                     f"{_pct(reg['soft']['success_rate']).strip()}, stiff {_pct(reg['stiff']['success_rate']).strip()}",
+                     fontsize=7.5)
     for ax in list(axes.flat)[n:]:
         ax.axis("off")
     for ax in axes[-1]:
@@ -397,9 +423,10 @@ def plot_sensitivity(results, path: Path) -> Path:
     handles.append(plt.Line2D([], [], color="#555555", ls=(0, (1, 2))))
     labels.append("below this k~ no state both holds and spares the object")
     fig.legend(handles, labels, loc="lower center", ncol=4, fontsize=8, frameon=False)
-    fig.suptitle("Sensitivity of the soft-object result to the thresholds (a study, not the env's defaults); "
-                 "soft (k~ < 1e-4) and stiff (k~ >= 1e-3) shaded", fontsize=9)
-    fig.tight_layout(rect=(0, 0.04, 1, 0.97))
+    fig.suptitle("Sensitivity of the soft-object result to the thresholds of the paper's task (its 250 mm ring; a "
+                 "study, not the env's defaults);\nthe paper's k~ bins shaded: soft (k~ < 1e-4) and stiff "
+                 "(k~ >= 1e-3)", fontsize=9)
+    fig.tight_layout(rect=(0, 0.04, 1, 0.95))
     path.parent.mkdir(parents=True, exist_ok=True)
     fig.savefig(path, dpi=110)
     plt.close(fig)
@@ -411,17 +438,28 @@ def plot_sensitivity(results, path: Path) -> Path:
 # ---------------------------------------------------------------------------------------------
 
 
+SEARCH_DEFAULTS = {"gripper": "pneunet", "objects": 200, "targets": list(COARSE_TARGETS),
+                   "durations": list(DURATIONS), "refine": 0.005}
+"""The search's defaults (its options default to ``None``, so that an option given is seen)."""
+SENSITIVITY_OBJECTS = 120
+"""``--sensitivity``'s objects per search (default)."""
+SENSITIVITY_GRID = 25
+"""``--sensitivity``'s stiffness grid (default)."""
+PROG = "pneunet-grasp search"
+
+
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--gripper", choices=("pneunet", "rigid"), default="pneunet",
+    parser.add_argument("--gripper", choices=("pneunet", "rigid"), default=None,
                         help="pneunet: the best-ramp policy (default); rigid: the rigid gripper's jaw ramp")
-    parser.add_argument("--objects", type=int, default=200,
-                        help="objects (seeded episodes) per candidate (default 200)")
+    parser.add_argument("--objects", type=int, default=None,
+                        help=f"objects (seeded episodes) per candidate (default {SEARCH_DEFAULTS['objects']}; "
+                             f"with --sensitivity {SENSITIVITY_OBJECTS})")
     parser.add_argument("--seed", type=int, default=0, help="base seed of the objects (default 0)")
-    parser.add_argument("--targets", type=float, nargs="+", default=list(COARSE_TARGETS),
+    parser.add_argument("--targets", type=float, nargs="+", default=None,
                         help="coarse grid of targets, fractions of p_max or of the jaw travel (default 0.025 .. 1)")
-    parser.add_argument("--durations", type=int, nargs="+", default=list(DURATIONS),
+    parser.add_argument("--durations", type=int, nargs="+", default=None,
                         help=f"ramp durations in steps (default {' '.join(map(str, DURATIONS))})")
-    parser.add_argument("--refine", type=float, default=0.005,
+    parser.add_argument("--refine", type=float, default=None,
                         help="spacing of the fine grid around the best target (default 0.005; 0: none)")
     parser.add_argument("--out", type=Path, default=None,
                         help="where to write the result (default agents/best_ramp.json or agents/best_rigid.json); "
@@ -431,42 +469,78 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                         help="override an environment config key (repeatable; VALUE is YAML)")
     parser.add_argument("--sensitivity", action="store_true",
-                        help="run the threshold sensitivity study instead (writes sensitivity.{json,md,png} to --out)")
-    parser.add_argument("--grid", type=int, default=25, help="--sensitivity: stiffness grid size (default 25)")
+                        help="run the threshold sensitivity study of the paper's task instead (writes "
+                             "sensitivity.{json,md,png} to --out; takes --objects, --seed, --grid, --out only)")
+    parser.add_argument("--grid", type=int, default=None,
+                        help=f"--sensitivity only: stiffness grid size (default {SENSITIVITY_GRID})")
     add_progress_argument(parser, "--quiet")
+
+
+def _given_search_options(args: argparse.Namespace) -> list[str]:
+    """The search's own options that were given (``--sensitivity`` ignores them: an error)."""
+    flags = [f"--{k}" for k in SEARCH_DEFAULTS if k != "objects" and getattr(args, k) is not None]
+    flags += [flag for flag, given in (("--plot", args.plot is not None), ("--config", args.config is not None),
+                                       ("--set", bool(args.overrides))) if given]
+    return flags
 
 
 def run(args: argparse.Namespace) -> int:
     from agents.policies import tuned_path
+    from pneunet_env.cli import require_extra
 
     if args.sensitivity:
+        given = _given_search_options(args)
+        if given:
+            usage_error(PROG, f"--sensitivity studies the paper's task with its own settings, so "
+                              f"{', '.join(given)} {'does' if len(given) == 1 else 'do'} not apply; it takes "
+                              "--objects, --seed, --grid and --out")
+        require_extra("search", "matplotlib", "plot", "the sensitivity study's sensitivity.png")
         out = Path("docs/img/results") if args.out is None else args.out
-        sensitivity_study(out, n_objects=args.objects if args.objects != 200 else 120, grid=args.grid, seed=args.seed,
+        sensitivity_study(out, n_objects=SENSITIVITY_OBJECTS if args.objects is None else args.objects,
+                          grid=SENSITIVITY_GRID if args.grid is None else args.grid, seed=args.seed,
                           progress=args.progress)
         print(f"wrote {out / 'sensitivity.json'}, {out / 'sensitivity.md'}, {out / 'sensitivity.png'}")
         return 0
+    if args.grid is not None:
+        usage_error(PROG, "--grid is the sensitivity study's stiffness grid: add --sensitivity, or leave it out")
+    for key, default in SEARCH_DEFAULTS.items():
+        if getattr(args, key) is None:
+            setattr(args, key, default)
+    if args.plot is not None:
+        require_extra("search", "matplotlib", "plot", f"--plot {args.plot}")
     try:
         overrides = parse_overrides(args.overrides)
         config = load_config(args.config, **overrides)
+    except ValueError as exc:
+        raise SystemExit(f"{PROG}: {exc}") from None
+    print(f"{PROG}: the best blind {'jaw' if args.gripper == 'rigid' else 'pressure'} ramp over {args.objects} "
+          f"objects of {task_description(config)}")
+    print(f"  {damage_rule_text(config)}")
+    print(f"  {regime_text(config)}")
+    try:
         t0 = time.perf_counter()
         best, cands = search_ramp(config, args.gripper, args.objects, args.seed, args.targets, args.durations,
                                   args.refine, progress=args.progress)
     except ValueError as exc:
-        raise SystemExit(f"agents.search: {exc}") from None
+        raise SystemExit(f"{PROG}: {exc}") from None
     elapsed = time.perf_counter() - t0
     out = args.out or tuned_path(config, args.gripper)
     save_best(best, out, config, args.gripper, args.objects, args.seed,
               {**({"config": str(args.config)} if args.config else {}), **overrides}, elapsed)
     s = best.summary(config)
     unit = "of the jaw travel" if args.gripper == "rigid" else "of p_max"
+    regimes = rate_parts([("force-controlled", s["success_rate_force"], s["objects_force"]),
+                          ("position-controlled", s["success_rate_position"], s["objects_position"])])
     print(f"best {args.gripper} ramp: target {best.target:.4g} {unit}, {best.n_steps} steps: success "
-          f"{s['success_rate']:.1%} (force-controlled {s['success_rate_force']:.1%} of {s['objects_force']}, "
-          f"position-controlled {s['success_rate_position']:.1%} of {s['objects_position']}), damaged "
-          f"{s['damage_rate']:.1%}, slipped "
+          f"{s['success_rate']:.1%} ({regimes}), damaged {s['damage_rate']:.1%}, slipped "
           f"{s['slip_rate']:.1%}; {len(cands)} candidates x {args.objects} objects in {elapsed:.0f} s")
     if args.gripper == "pneunet" and best.target >= max(args.targets) - 1e-12:
-        print(f"note: the best target is the top of the range ({config.task.max_pressure_kpa:g} kPa): more pressure "
-              "may do better; raise it with --set max_pressure_kpa=... (a stiffer elastomer needs more)")
+        if max(args.targets) >= 1.0 - 1e-12:
+            print(f"note: the best target is the top of the range ({config.task.max_pressure_kpa:g} kPa): more "
+                  "pressure may do better; raise it with --set max_pressure_kpa=... (a stiffer elastomer needs more)")
+        else:
+            print(f"note: the best target is the largest of --targets ({max(args.targets):g} of p_max): a higher "
+                  "one may do better")
     print(f"wrote {out}")
     if args.plot is not None:
         plot_search(cands, best, args.plot, config, args.gripper)

@@ -31,7 +31,8 @@ layout; unknown keys raise):
 ``n_eval_envs``        envs of the evaluation ``VecEnv``
 ``checkpoint_freq``    timesteps between checkpoints (model and ``VecNormalize`` statistics)
 ``max_train_minutes``  wall-clock budget of one invocation (training stops cleanly when it is spent)
-``torch_threads``      ``torch.set_num_threads`` (default 2: the CI machine has two cores)
+``torch_threads``      ``torch.set_num_threads`` (default 1: the batched env already runs its numba threads
+                       beside it; two torch threads ran training up to 10x slower on 2 cores; ``--threads``)
 =====================  ==============================================================================
 
 An older single-file config (these keys, and ``action: setpoint|rate``, inside the rl-zoo3 file) still loads, with
@@ -81,7 +82,7 @@ ZOO_UNSUPPORTED = ("monitor_kwargs", "noise_type", "noise_std")
 SETPOINT_WRAPPER = "pneunet_env.wrappers.PressureSetpoint"
 DEFAULTS: dict[str, Any] = {
     "vec_env": "batched", "env_kwargs": {}, "seed": 0, "eval_freq": 20_000, "n_eval_episodes": 100,
-    "n_eval_envs": 4, "checkpoint_freq": 50_000, "max_train_minutes": 10.0, "torch_threads": 2,
+    "n_eval_envs": 4, "checkpoint_freq": 50_000, "max_train_minutes": 10.0, "torch_threads": 1,
     "policy": "MlpPolicy", "n_envs": 8, "n_timesteps": 300_000, "normalize": False, "policy_kwargs": {},
 }
 
@@ -423,6 +424,14 @@ def _callbacks(hp, run_dir: Path, eval_env, seed: int, deadline: float, resuming
                 if len(self.evaluations_results):
                     self.best_mean_reward = float(max(np.mean(r) for r in self.evaluations_results))
 
+        def _on_training_start(self) -> None:
+            """A new run is evaluated before its first update too: step 0, the untrained policy."""
+            super()._on_training_start()
+            if not resuming and self.eval_freq > 0:
+                calls, self.n_calls = self.n_calls, 0
+                self._on_step()
+                self.n_calls = calls
+
         def _on_step(self) -> bool:
             if self.eval_freq > 0 and self.n_calls % self.eval_freq == 0:
                 self.eval_env.seed(seed)
@@ -537,6 +546,8 @@ def train(hp: dict[str, Any], run_dir: Path, resume: Path | None = None, progres
         model = algo_cls(hp["policy"], venv, seed=seed, device="cpu", verbose=0,
                          policy_kwargs=_resolve_policy_kwargs(hp["policy_kwargs"]), **algo_kwargs)
         done = 0
+        model.save(str(run_dir / "initial_model.zip"))  # the untrained policy: step 0 of the learning curve
+        _save_stats(model, run_dir / "initial_model")
     remaining = max(0, hp["n_timesteps"] - done)
     zoo = {k: v for k, v in hp.items() if k not in PROJECT_KEYS}
     (run_dir / "config.yaml").write_text(yaml.safe_dump({ENV_ID: zoo}, sort_keys=False))
@@ -723,8 +734,8 @@ def _run_stats(stem: Path) -> NormalizationStats | None:
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--config", required=True,
-                        help="rl-zoo3 hyperparameter YAML (configs/train/ppo.yaml, sac.yaml); this command's own keys "
-                             "are read from NAME.project.yaml beside it")
+                        help="rl-zoo3 hyperparameter YAML (configs/train/ppo.yaml), or a shipped config's name (ppo, "
+                             "sac); this command's own keys are read from NAME.project.yaml beside it")
     parser.add_argument("--run-dir", type=Path, default=None, help="output directory (default runs/<algo>)")
     parser.add_argument("--resume", nargs="?", const="latest", default=None, metavar="CHECKPOINT",
                         help="resume from CHECKPOINT.zip, or (no value) from the newest checkpoint of --run-dir")
@@ -736,6 +747,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--checkpoint-freq", type=float, default=None, help="override checkpoint_freq (timesteps)")
     parser.add_argument("--max-minutes", type=float, default=None, help="override max_train_minutes")
     parser.add_argument("--vec-env", choices=("batched", "dummy"), default=None, help="override vec_env")
+    parser.add_argument("--threads", type=int, default=None,
+                        help="torch threads (override torch_threads; default 1: the batched env's numba threads run "
+                             "beside it)")
+    parser.add_argument("--seeds", type=int, default=None, metavar="N",
+                        help="train N seeds (seed, seed+1, ...) in RUN_DIR/seed-K, then score each on held-out objects "
+                             "with its untrained start and best-ramp: seeds.json, learning_curves.png; --export then "
+                             "exports the median seed's model (agents.seeds)")
+    parser.add_argument("--jobs", type=int, default=1, help="with --seeds: seeds trained at once, one process each")
+    parser.add_argument("--objects", type=int, default=400,
+                        help="with --seeds: held-out objects each seed's model is scored on (default 400, demo's)")
     parser.add_argument("--export", type=Path, default=None, metavar="PATH_STEM",
                         help="copy the best model to PATH_STEM.zip (+ _vecnormalize.json, .json), "
                              "e.g. agents/models/ppo_pneunet")
@@ -751,7 +772,7 @@ def _command(args: argparse.Namespace, run_dir: Path) -> str:
     for flag, value in (("--timesteps", args.timesteps), ("--n-envs", args.n_envs), ("--seed", args.seed),
                         ("--eval-freq", args.eval_freq), ("--n-eval-episodes", args.n_eval_episodes),
                         ("--checkpoint-freq", args.checkpoint_freq), ("--max-minutes", args.max_minutes),
-                        ("--vec-env", args.vec_env), ("--export", args.export)):
+                        ("--vec-env", args.vec_env), ("--threads", args.threads), ("--export", args.export)):
         if value is not None:
             parts.append(f"{flag} {value:g}" if isinstance(value, float) else f"{flag} {value}")
     parts += [f"--set {item}" for item in getattr(args, "overrides", [])]
@@ -762,6 +783,9 @@ def _command(args: argparse.Namespace, run_dir: Path) -> str:
 
 def run(args: argparse.Namespace) -> int:
     try:
+        from agents.resources import resolve_config
+
+        args.config = str(resolve_config(args.config, "train"))
         hp = load_train_config(args.config)
         for key, value in (("n_timesteps", args.timesteps), ("n_envs", args.n_envs), ("seed", args.seed),
                            ("eval_freq", args.eval_freq), ("n_eval_episodes", args.n_eval_episodes),
@@ -774,6 +798,8 @@ def run(args: argparse.Namespace) -> int:
             hp["max_train_minutes"] = float(args.max_minutes)
         if args.vec_env is not None:
             hp["vec_env"] = args.vec_env
+        if args.threads is not None:
+            hp["torch_threads"] = _count("--threads", args.threads)
         if args.overrides:
             from agents.evaluate import parse_overrides
             from pneunet_env.config import load_config
@@ -784,6 +810,10 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as exc:
         raise SystemExit(f"pneunet-grasp train: {exc}") from None
     run_dir = args.run_dir or Path("runs") / hp["algo"]
+    if args.seeds is not None:
+        from agents.seeds import run_seeds
+
+        return run_seeds(args, hp, run_dir)
     resume = None
     if args.resume is not None:
         resume = latest_checkpoint(run_dir) if args.resume == "latest" else Path(args.resume)
@@ -800,5 +830,12 @@ def run(args: argparse.Namespace) -> int:
           f"{inv['wall_s']:.0f} s; best evaluation: {record['best_eval']}")
     if args.export is not None:
         path = export(run_dir, args.export, record)
-        print(f"exported the best model to {path}")
+        print(f"exported {export_source(run_dir)} to {path}")
     return 0
+
+
+def export_source(run_dir: Path) -> str:
+    """What :func:`export` copies from ``run_dir``, in words."""
+    if (run_dir / "best_model.zip").is_file():
+        return "the best evaluation's model"
+    return "the final model (no evaluation ran, so there is no best model)"

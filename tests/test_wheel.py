@@ -184,6 +184,9 @@ def test_wheel_ships_every_file_of_the_packages(installed: dict) -> None:
     """Every module and data file under pneunet_env/ and agents/ in the source tree is installed."""
     for pkg in PACKAGES:
         source = _files(installed["src"] / pkg)
+        if pkg == "agents":  # configs/ ships inside agents/ (setup.py): a wheel-only user finds them by name
+            source |= {f"configs/{f}" for f in _files(installed["src"] / "configs")
+                       if f.endswith((".yaml", ".best_ramp.json"))}
         shipped = _files(installed["purelib"] / pkg)
         missing = sorted(source - shipped)
         assert not missing, (f"{pkg}: files in the source tree but not in {installed['wheel'].name} (declare them in "
@@ -217,3 +220,24 @@ def test_shipped_model_loads(installed: dict, tmp_path: Path) -> None:
     purelib = installed["purelib"]
     assert _under(info["path"], purelib) and _under(info["vecnormalize"], purelib), info
     assert info["normalized"], info
+
+
+def test_train_and_evaluate_from_the_installed_wheel(installed: dict, tmp_path: Path) -> None:
+    """A user with the wheel alone trains from the shipped config by name, in an empty folder, and evaluates the
+    result and a shipped model by name: 2,000 steps (a smoke run: that it works, not how well)."""
+    find = _run([installed["python"], "-I", "-c", "import importlib.util as u; "
+                 "print(all(u.find_spec(m) for m in ('stable_baselines3', 'torch', 'matplotlib')))"],
+                cwd=tmp_path, env=installed["env"], timeout=60, what="looking for stable-baselines3")
+    if find.stdout.strip() != "True":
+        pytest.skip("stable-baselines3 / torch / matplotlib not installed (the rl and plot extras)")
+    script = installed["bindir"] / ("pneunet-grasp.exe" if os.name == "nt" else "pneunet-grasp")
+    res = _run([script, "train", "--config", "ppo", "--timesteps", "2048", "--n-envs", "4", "--eval-freq", "1024",
+                "--n-eval-episodes", "4", "--run-dir", "run", "--export", "models/mine", "--no-progress"],
+               cwd=tmp_path, env=installed["env"], timeout=600, what="pneunet-grasp train --config ppo")
+    assert (tmp_path / "models" / "mine.zip").is_file(), _report(res, "no exported model")
+    assert "exported the best evaluation's model" in res.stdout, res.stdout[-2000:]
+    record = json.loads((tmp_path / "run" / "run.json").read_text())
+    assert _under(record["config_path"], installed["purelib"]), record["config_path"]
+    res = _run([script, "demo", "--objects", "8", "--policy", "models/mine.zip", "--policy", "ppo_kitchen"],
+               cwd=tmp_path, env=installed["env"], timeout=600, what="pneunet-grasp demo with the trained model")
+    assert "mine.zip" in res.stdout and "ppo_kitchen.zip" in res.stdout, res.stdout[-3000:]

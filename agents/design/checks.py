@@ -59,9 +59,12 @@ def run_design_checks(n_objects: int = 200, seed: int = 0, base: EnvConfig | Non
             f"mean {low:.1%} for J <= 10 against {high:.1%} for J >= 20 (one grid step: {step:.1%})",
             low > high + step, criterion="the mean window of J <= 10 is wider than that of J >= 20 by more than one "
             "step of the pressure grid (1/60 of p_max, over Table 1's best pressure); Table 1's geometry, mu 50 kPa",
+            # a known disagreement: read across random designs (0.6), not borne out on Table 1's geometry alone
+            expected=False,
             note=("not supported by this sweep: the means differ by less than one grid step; a window is measured "
                   "around the best pressure whatever its success, so the wide window at J = 80 is that of a poor "
-                  "best (6 % of the force-controlled objects)") if not low > high + step else "",
+                  "best (6 % of the force-controlled objects)") if not low > high + step else
+                 "holds here, although the 200-object sweep of 0.6 did not bear it out",
             values={f"window_J{j:g}": w for j, w in win.items()}),
         CheckResult(
             "design_gent_snap", "main §4 (a larger J may snap), on blind grasping",

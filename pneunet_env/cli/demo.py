@@ -7,9 +7,11 @@ object's regime is read off the mechanics (:mod:`pneunet_env.physics.regimes`: f
 more than half of the free actuator's curvature beyond its surface at 60 kPa, position-controlled otherwise).
 
 **The paper's task** (``--task paper``, ``PneuNetGrasp-Paper-v0``): its 250 mm ring, by object stiffness:
-The stiffness axis ``k~ = k_obj w/mu`` is cut into log-spaced bins (default: the four decades from 1e-5 to
-1e-1). Each episode draws its ``k~`` log-uniformly inside its bin (from a generator seeded by ``--seed`` and
-the bin), pins it with ``reset(options={"object_stiffness": k})``, and runs each policy on the same objects:
+The stiffness axis ``k~ = k_obj w/mu`` is cut into log-spaced bins (``--k-min``, ``--k-max``, ``--bins``; default:
+the four decades from 1e-5 to 1e-1). Each of ``--episodes`` episodes per bin draws its ``k~`` log-uniformly inside
+its bin (from a generator seeded by ``--seed`` and the bin), pins it with ``reset(options={"object_stiffness":
+k})``, and runs each policy on the same objects. These four options belong to the paper's task, and ``--objects``
+to the default task: given to the other task, each is an error (exit status 2) that names the ``--task`` it needs.
 
 * ``best-ramp``: the linear pressure ramp found by ``python -m agents.search`` (``agents/best_ramp.json``): one
   blind schedule, tuned once over the object distribution, the same for every object;
@@ -19,12 +21,12 @@ the bin), pins it with ``reset(options={"object_stiffness": k})``, and runs each
   (``RigidGrasp-v0``, :mod:`pneunet_env.envs.rigid`).
 
 ``--targets-kpa`` adds plain linear ramps (to each target over ``--ramp-steps`` steps). Everything else is the
-environment's config: the paper's object size, water-like density, the damage and slip thresholds of
-``docs/env.md``; ``--config PATH`` and ``--set KEY=VALUE`` (repeatable, VALUE is YAML, on top of ``--config`` and of
-the paper task's settings) change it. A schedule shipped beside the config file, ``DIR/NAME.best_ramp.json``
-(``DIR/NAME.best_rigid.json`` for ``rigid``) beside ``DIR/NAME.yaml``, replaces the package's, with or without
-``--set`` (:func:`agents.policies.tuned_path`). ``--json`` saves every episode. ``pneunet-grasp evaluate`` makes
-the plots.
+environment's config: the task's objects, the damage and slip thresholds of ``docs/env.md`` (the header prints
+them: the damage rule is the config's ``damage_rule``, whichever the task); ``--config PATH`` and ``--set KEY=VALUE``
+(repeatable, VALUE is YAML, on top of ``--config`` and of the paper task's settings) change it. A schedule shipped
+beside the config file, ``DIR/NAME.best_ramp.json`` (``DIR/NAME.best_rigid.json`` for ``rigid``) beside
+``DIR/NAME.yaml``, replaces the package's, with or without ``--set`` (:func:`agents.policies.tuned_path`). ``--json``
+saves every episode. ``pneunet-grasp evaluate`` makes the plots.
 """
 
 from __future__ import annotations
@@ -40,23 +42,54 @@ import numpy as np
 from pneunet_env.cli.progress import add_progress_argument, progress
 
 DEFAULT_POLICIES = ("best-ramp", "oracle", "rigid")
+DEFAULT_OBJECTS = 100
+"""Objects drawn on the default task."""
+PAPER_OPTIONS = (("--k-min", 1e-5, "smallest k~"), ("--k-max", 1e-1, "largest k~"),
+                 ("--bins", 4, "log-spaced stiffness bins (4: decades)"),
+                 ("--episodes", 10, "episodes per bin and policy"))
+"""The paper task's options: ``(flag, default, help)``; ``None`` until given, so that giving one is seen."""
+PROG = "pneunet-grasp demo"
+
+
+def _check_task_options(args: argparse.Namespace) -> None:
+    """Fill the task's defaults; an option of the other task, given, is an argument error naming ``--task``."""
+    from agents.evaluate import usage_error
+
+    paper = [flag for flag, _, _ in PAPER_OPTIONS if getattr(args, _dest(flag)) is not None]
+    if args.task == "default" and paper:
+        usage_error(PROG, f"{', '.join(paper)} {'applies' if len(paper) == 1 else 'apply'} to the paper's task "
+                          "(its stiffness bins) only: add --task paper, or leave "
+                          f"{'it' if len(paper) == 1 else 'them'} out (the default task draws --objects from the "
+                          "catalogue)")
+    if args.task == "paper" and args.objects is not None:
+        usage_error(PROG, "--objects applies to the default task only: the paper's task runs --episodes objects in "
+                          "each of --bins stiffness bins (drop --task paper to draw --objects from the catalogue)")
+    for flag, default, _ in PAPER_OPTIONS:
+        if getattr(args, _dest(flag)) is None:
+            setattr(args, _dest(flag), default)
+    if args.objects is None:
+        args.objects = DEFAULT_OBJECTS
+
+
+def _dest(flag: str) -> str:
+    return flag.lstrip("-").replace("-", "_")
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--task", choices=("default", "paper"), default="default",
                         help="default: objects drawn from the catalogue (by regime and class); paper: the paper's "
                              "250 mm ring, by stiffness bin")
-    parser.add_argument("--objects", type=int, default=100, help="objects drawn (default task; default 100)")
+    parser.add_argument("--objects", type=int, default=None,
+                        help=f"objects drawn (the default task only; default {DEFAULT_OBJECTS})")
     parser.add_argument("--policy", action="append", default=None, metavar="NAME",
                         help="policies to run (repeatable; default best-ramp, oracle, rigid; see agents.policies)")
     parser.add_argument("--targets-kpa", type=float, nargs="+", default=[],
                         help="also run plain linear ramps to these targets (kPa)")
     parser.add_argument("--ramp-steps", type=int, default=40, help="steps of those ramps from 0 to the target "
                         "(default 40)")
-    parser.add_argument("--k-min", type=float, default=1e-5, help="smallest k~ (default 1e-5)")
-    parser.add_argument("--k-max", type=float, default=1e-1, help="largest k~ (default 1e-1)")
-    parser.add_argument("--bins", type=int, default=4, help="log-spaced stiffness bins (default 4: decades)")
-    parser.add_argument("--episodes", type=int, default=10, help="episodes per bin and policy (default 10)")
+    for flag, default, help_ in PAPER_OPTIONS:
+        parser.add_argument(flag, type=type(default), default=None, help=f"{help_} (--task paper only; default "
+                            f"{default:g})")
     parser.add_argument("--seed", type=int, default=0, help="base seed (default 0)")
     parser.add_argument("--config", default=None, metavar="PATH",
                         help="environment config YAML (default: built-in defaults); best-ramp and rigid load "
@@ -69,17 +102,28 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from agents.evaluate import SOFT_MAX, STIFF_MIN, parse_overrides, run_episode
+    from agents.evaluate import (
+        SOFT_MAX,
+        STIFF_MIN,
+        damage_rule_text,
+        parse_overrides,
+        rate_parts,
+        run_episode,
+        slip_rule_text,
+        task_description,
+        usage_error,
+    )
     from agents.oracle import feasible_stiffness
     from agents.policies import make_policy
     from pneunet_env import PAPER_TASK
     from pneunet_env.config import load_config
     from pneunet_env.objects import stiffness_per_modulus
 
+    _check_task_options(args)
     if args.bins < 1 or args.episodes < 1 or args.ramp_steps < 1 or args.objects < 1:
-        raise SystemExit("--bins, --episodes, --objects and --ramp-steps must be >= 1")
+        usage_error(PROG, "--bins, --episodes, --objects and --ramp-steps must be >= 1")
     if not 0.0 < args.k_min < args.k_max:
-        raise SystemExit(f"need 0 < --k-min < --k-max, got {args.k_min} and {args.k_max}")
+        usage_error(PROG, f"need 0 < --k-min < --k-max, got {args.k_min:g} and {args.k_max:g}")
     try:
         overrides = parse_overrides(args.overrides)
         cfg = load_config(args.config, **{**(PAPER_TASK if args.task == "paper" else {}), **overrides})
@@ -118,13 +162,9 @@ def run(args: argparse.Namespace) -> int:
     elapsed = time.perf_counter() - t0
 
     main = entries[0]
-    print(f"PneuNetGrasp-v0 demo: blind grasps of objects from gels to elastomers; {cfg.task.squeeze_steps} squeeze + "
-          f"{cfg.task.hold_steps} hold steps; {args.episodes} objects per bin, the same for every policy")
-    print(f"object: H = {_fmt(oc.object_thickness_mm)} mm, kappa_obj = {_fmt(oc.object_curvature_per_m)} /m, "
-          f"rho = {_fmt(oc.object_density_kg_m3)} kg/m^3, failure strain {_fmt(oc.object_failure_strain)}; "
-          f"friction {cfg.task.friction_coefficient:g}, {cfg.task.grip_faces} faces")
-    print(f"damage: traction > 3 eps_f mu_obj, or indentation > {cfg.task.crush_fraction:g} H;  "
-          "slip (hold phase): traction < rho g H / (faces mu_f)")
+    print(f"PneuNetGrasp-Paper-v0 demo: blind grasps of {task_description(cfg)}; {cfg.task.squeeze_steps} squeeze + "
+          f"{cfg.task.hold_steps} hold steps; {args.episodes} objects per k~ bin, the same for every policy")
+    print(f"{damage_rule_text(cfg)}; {slip_rule_text(cfg)}")
     others = entries[1:]
     short = _short_names(e.name for e in entries)
     print(f"\n{main.name}: {main.label}")
@@ -146,14 +186,17 @@ def run(args: argparse.Namespace) -> int:
         rs = [r for r in results if r["policy"] == e.name]
         soft = [r for r in rs if r["stiffness"] < SOFT_MAX]
         stiff = [r for r in rs if r["stiffness"] >= STIFF_MIN]
-        print(f"{short[e.name]:>16}: success {rate(rs, 'success'):4.0%} overall; soft (k~ < 1e-4) "
-              f"{_pct(rate(soft, 'success'))}, stiff (k~ >= 1e-3) {_pct(rate(stiff, 'success'))}   [{e.label}]")
+        bins = rate_parts([("soft (k~ < 1e-4)", rate(soft, "success"), len(soft)),
+                           ("stiff (k~ >= 1e-3)", rate(stiff, "success"), len(stiff))])
+        print(f"{short[e.name]:>16}: success {rate(rs, 'success'):4.0%} overall; the paper's k~ bins: {bins}   "
+              f"[{e.label}]")
     if others:
         print("(other policies' columns: success, and the failures as d = damaged, s = slipped)")
-    k_feas = feasible_stiffness(cfg)
-    print(f"\nBelow k~ = {k_feas:.2g} (mu_obj = {k_feas / unit_mu:.3g} kPa) no state of any gripper both holds the "
-          "object and spares it: the grip needs F = k_obj delta >= rho g H / (faces mu_f), which takes an "
-          "indentation past the crush depth. See docs/results-paper.md.")
+    if cfg.task.damage_rule == "crush_fraction" and not cfg.objects.from_catalogue:  # the bound assumes this rule
+        k_feas = feasible_stiffness(cfg)
+        print(f"\nBelow k~ = {k_feas:.2g} (mu_obj = {k_feas / unit_mu:.3g} kPa) no state of any gripper both holds "
+              "the object and spares it: the grip needs F = k_obj delta >= rho g H / (faces mu_f), which takes an "
+              "indentation past the crush depth. See docs/results-paper.md.")
     print(f"\n{len(results)} episodes in {elapsed:.1f} s")
     if args.json is not None:
         args.json.parent.mkdir(parents=True, exist_ok=True)
@@ -195,7 +238,14 @@ def _outcome(rs) -> str:
 def _run_distribution(args: argparse.Namespace, cfg, entries) -> int:
     """The default task: objects drawn by the env; success by regime and by class, policy by policy."""
     from agents.batch import policy_episodes
-    from agents.evaluate import HELD_OUT_SEED, object_regimes
+    from agents.evaluate import (
+        HELD_OUT_SEED,
+        damage_rule_text,
+        object_regimes,
+        regime_text,
+        slip_rule_text,
+        task_description,
+    )
     from pneunet_env.physics.regimes import REGIMES
 
     short = _short_names(e.name for e in entries)
@@ -211,18 +261,18 @@ def _run_distribution(args: argparse.Namespace, cfg, entries) -> int:
     reg = object_regimes([r["stiffness"] for r in first], [r["curvature"] for r in first], cfg)
     classes = [r["object_class"] for r in first]
     elapsed = time.perf_counter() - t0
-    print(f"PneuNetGrasp-v0 demo: {len(seeds)} objects drawn by the env (use case {cfg.objects.use_case!r}, damage "
-          f"rule {cfg.task.damage_rule}), the same for every policy; {cfg.task.squeeze_steps} squeeze + "
-          f"{cfg.task.hold_steps} hold steps")
-    print("regime at 60 kPa, from the mechanics: force-controlled (the object yields) or position-controlled "
-          "(it blocks the actuator)\n")
-    cols = [(REGIMES[0], reg == 0), (REGIMES[1], reg == 1), ("all", np.ones(len(reg), bool))]
+    print(f"PneuNetGrasp-v0 demo: {len(seeds)} objects drawn by the env from {task_description(cfg)}, the same "
+          f"for every policy; {cfg.task.squeeze_steps} squeeze + {cfg.task.hold_steps} hold steps")
+    print(f"{damage_rule_text(cfg)}; {slip_rule_text(cfg)}")
+    print(f"{regime_text(cfg)}\n")
+    cols = [(REGIMES[code], reg == code) for code in range(len(REGIMES)) if (reg == code).any()]
+    cols.append(("all", np.ones(len(reg), bool)))
     print(f"{'policy':>18}" + "".join(f"  {name + f' ({int(m.sum())})':>26}" for name, m in cols))
     summary = {}
     for e in entries:
         ok = np.array([r["success"] for r in results[e.name]])
         cells = [_rate_cell(ok, m) for _, m in cols]
-        summary[e.name] = {name: (float(ok[m].mean()) if m.any() else math.nan) for name, m in cols}
+        summary[e.name] = {name: float(ok[m].mean()) for name, m in cols}  # only groups with objects
         print(f"{short[e.name]:>18}" + "".join(f"  {c:>26}" for c in cells))
     print("\nby object class (share of draws, share force-controlled), success:")
     names = list(dict.fromkeys(classes))

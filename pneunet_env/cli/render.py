@@ -1,11 +1,17 @@
 """``pneunet-grasp render``: save PNG frames (and a contact sheet) of episodes under a pressure ramp.
 
 For each object stiffness ``k~`` (``--stiffness``, several allowed), one episode of ``PneuNetGrasp-v0``
-is run with the object pinned and the scripted :class:`agents.scripted.LinearRamp` to ``--target`` of
-``p_max`` over ``--steps`` steps; every frame is saved as ``OUT/frames/k<K>_<step>.png`` and a contact
-sheet (one row per stiffness, ``--columns`` frames evenly spaced in time) as ``OUT/sheet.png``.
-``--object NAME ...`` instead runs one episode per catalogue class (the env draws its object from that class
-alone, ``class_weights: {NAME: 1}``, with the reset seed), frames ``OUT/frames/<NAME>_<step>.png``.
+(``--env PneuNetGrasp-Paper-v0``: the paper's task, its 250 mm ring) is run with the object pinned and the
+scripted :class:`agents.scripted.LinearRamp` to ``--target`` of ``p_max`` over ``--steps`` steps; every frame is
+saved as ``OUT/frames/k<K>_<step>.png`` and a contact sheet (one row per stiffness, ``--columns`` frames evenly
+spaced in time, over a legend of the colours) as ``OUT/sheet.png``. ``--object NAME ...`` instead runs one episode
+per catalogue class (the env draws its object from that class alone, ``class_weights: {NAME: 1}``, with the reset
+seed), frames ``OUT/frames/<NAME>_<step>.png``.
+
+``--sheet PNG`` also writes the contact sheet there; with ``--sheet`` and no ``--out`` only that sheet is written
+(no frames, no folder). One of ``--out`` and ``--sheet`` is needed. Each frame carries its label (the object, the
+step, the pressure, the state), so frames must be at least 240 x 180 pixels (``--width``/``--height``, or the
+config's ``render`` size); a smaller size is refused with a message naming it.
 PNGs are written with :func:`pneunet_env.envs.render.save_png` (zlib only; no matplotlib needed).
 """
 
@@ -23,7 +29,9 @@ DEFAULT_STIFFNESS = (1e-5, 1e-4, 1e-2)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--out", required=True, type=Path, help="output folder (created)")
+    parser.add_argument("--out", type=Path, default=None,
+                        help="output folder (created): every frame under OUT/frames/ and the sheet as OUT/sheet.png; "
+                             "optional with --sheet (then only the sheet is written, no frames)")
     parser.add_argument("--stiffness", type=float, nargs="+", default=None,
                         help="object stiffness(es) k~ = k_obj w/mu, one episode each (default "
                              f"{' '.join(f'{k:.0e}' for k in DEFAULT_STIFFNESS)})")
@@ -34,33 +42,57 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--target", type=float, default=1.0, help="ramp target, fraction of p_max (default 1)")
     parser.add_argument("--columns", type=int, default=6, help="frames per stiffness on the sheet (default 6)")
     parser.add_argument("--config", default=None, help="environment config YAML (default: the built-in defaults)")
+    parser.add_argument("--env", default="PneuNetGrasp-v0", choices=("PneuNetGrasp-v0", "PneuNetGrasp-Paper-v0"),
+                        help="the environment (default PneuNetGrasp-v0; PneuNetGrasp-Paper-v0: the paper's ring)")
     parser.add_argument("--keep-going", action="store_true",
                         help="do not end the episode on damage or slip (flagged, drawn in red), to see the whole ramp")
-    parser.add_argument("--width", type=int, default=None, help="frame width in px (default: the config's, 480)")
-    parser.add_argument("--height", type=int, default=None, help="frame height in px (default: the config's, 360)")
+    parser.add_argument("--width", type=int, default=None,
+                        help="frame width in px, at least 240 for the label (default: the config's, 480)")
+    parser.add_argument("--height", type=int, default=None,
+                        help="frame height in px, at least 180 for the label (default: the config's, 360)")
     parser.add_argument("--seed", type=int, default=0, help="reset seed (default 0)")
-    parser.add_argument("--sheet", type=Path, default=None, help="also copy the contact sheet to this path")
+    parser.add_argument("--sheet", type=Path, default=None,
+                        help="write the contact sheet (frames over a legend) to this path too; without --out, only it")
     add_progress_argument(parser)
 
 
 def run(args: argparse.Namespace) -> int:
     import gymnasium as gym
 
-    import pneunet_env  # noqa: F401  (registers the environment)
+    import pneunet_env  # (registers the environment)
     from agents.scripted import LinearRamp
-    from pneunet_env.envs.render import contact_sheet, save_png
+    from pneunet_env.config import MAX_RENDER_PIXELS, load_config
+    from pneunet_env.envs.render import LABEL_MIN_HEIGHT, LABEL_MIN_WIDTH, contact_sheet, save_png
 
+    if args.out is None and args.sheet is None:
+        raise SystemExit("give --out DIR (the frames and the sheet) or --sheet PNG (the sheet alone), or both")
     if args.steps < 1:
         raise SystemExit(f"--steps must be >= 1, got {args.steps}")
     if args.columns < 1:
         raise SystemExit(f"--columns must be >= 1, got {args.columns}")
+    for name, value, least in (("width", args.width, LABEL_MIN_WIDTH), ("height", args.height, LABEL_MIN_HEIGHT)):
+        if value is not None and not least <= value <= MAX_RENDER_PIXELS:
+            raise SystemExit(f"--{name} {value}: a frame's {name} must be in [{least}, {MAX_RENDER_PIXELS}] pixels "
+                             f"(at least {LABEL_MIN_WIDTH} x {LABEL_MIN_HEIGHT} to carry its label)")
     overrides = {"terminate_on_damage": False, "terminate_on_slip": False} if args.keep_going else {}
     if args.width is not None:
         overrides["render_width"] = args.width
     if args.height is not None:
         overrides["render_height"] = args.height
+    env_kwargs = dict(pneunet_env.PAPER_TASK) if args.env == pneunet_env.PAPER_ENV_ID else {}
+    try:
+        render_config = load_config(args.config, **env_kwargs, **overrides).render
+    except ValueError as exc:
+        raise SystemExit(f"render: {exc}") from None
+    for name, value, least in (("width", render_config.width, LABEL_MIN_WIDTH),
+                               ("height", render_config.height, LABEL_MIN_HEIGHT)):
+        if value < least:  # from the config (--width/--height were checked above)
+            raise SystemExit(f"render.{name} {value} (from --config): a frame must be at least {LABEL_MIN_WIDTH} x "
+                             f"{LABEL_MIN_HEIGHT} pixels to carry its label; pass --{name}")
     if args.object is not None and args.stiffness is not None:
         raise SystemExit("give --stiffness or --object, not both")
+    if args.object is not None and env_kwargs:
+        raise SystemExit(f"--object needs the catalogue: {args.env} has no classes (use --stiffness)")
     if args.object is not None:  # (name, overrides, reset options) per episode
         from pneunet_env.catalogue import load_catalogue
 
@@ -73,13 +105,14 @@ def run(args: argparse.Namespace) -> int:
     else:
         stiffness = dict.fromkeys(args.stiffness or DEFAULT_STIFFNESS)
         episodes = [(f"k{k:.0e}", {}, {"object_stiffness": k}) for k in stiffness]
-    frames_dir = args.out / "frames"
-    frames_dir.mkdir(parents=True, exist_ok=True)
+    frames_dir = None if args.out is None else args.out / "frames"
+    if frames_dir is not None:
+        frames_dir.mkdir(parents=True, exist_ok=True)
     rows = []
     bar = progress(total=len(episodes) * (args.steps + 1), desc="render", unit="frame", enabled=args.progress)
     for tag, extra, options in episodes:
         bar.set_description_str(f"render {tag}")
-        env = gym.make("PneuNetGrasp-v0", render_mode="rgb_array", config=args.config, **overrides, **extra)
+        env = gym.make(args.env, render_mode="rgb_array", config=args.config, **overrides, **extra)
         policy = LinearRamp(args.target, args.steps, env.unwrapped.config)
         obs, info = env.reset(seed=args.seed, options=options)
         k = info["object_stiffness"]
@@ -96,8 +129,9 @@ def run(args: argparse.Namespace) -> int:
                 break
         env.close()
         bar.update(args.steps + 1 - len(frames))  # the steps of an episode that ended early
-        for t, f in enumerate(frames):
-            save_png(frames_dir / f"{tag}_{t:03d}.png", f)
+        if frames_dir is not None:
+            for t, f in enumerate(frames):
+                save_png(frames_dir / f"{tag}_{t:03d}.png", f)
         idx = np.unique(np.linspace(0, len(frames) - 1, args.columns).round().astype(int))
         row = [frames[i] for i in idx]
         row += [np.full_like(frames[0], 255)] * (args.columns - len(row))
@@ -109,8 +143,9 @@ def run(args: argparse.Namespace) -> int:
         )
     bar.close()
     sheet = contact_sheet(rows, args.columns)
-    path = save_png(args.out / "sheet.png", sheet)
-    print(f"wrote {frames_dir}/*.png and {path}")
+    if args.out is not None:
+        path = save_png(args.out / "sheet.png", sheet)
+        print(f"wrote {frames_dir}/*.png and {path}")
     if args.sheet is not None:
         args.sheet.parent.mkdir(parents=True, exist_ok=True)
         save_png(args.sheet, sheet)

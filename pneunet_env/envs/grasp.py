@@ -127,8 +127,10 @@ class PneuNetGraspEnv(gym.Env):
     ``render_mode="rgb_array"``: an ``(render_height, render_width, 3)`` uint8 picture (480 x 360): the
     actuator's chambers curling along their arc, the object's arc with its indentation, the load on it in
     colour (red when damaged), a pressure bar, a traction gauge (log scale, with the grip and failure
-    marks), the episode's progress and a status lamp. ``"human"`` shows the same picture in a matplotlib
-    window (matplotlib is imported only then).
+    marks), the episode's progress, a status lamp and, on frames of at least 240 x 180, a text label (top left:
+    the object's class, or its ``k~`` when it has none or its stiffness was pinned, the step, the pressure in kPa
+    and the state: free, squeezing, gripping, held, slipped, crushed or damaged). ``"human"`` shows the same
+    picture in a matplotlib window (matplotlib is imported only then).
     """
 
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 20}
@@ -151,6 +153,7 @@ class PneuNetGraspEnv(gym.Env):
         self._warned = False
         self._static_info: dict[str, Any] | None = None
         self._viewer = None
+        self._render_name = ""
 
     # ---- the object and state, for users -------------------------------------------------------
     @property
@@ -175,6 +178,10 @@ class PneuNetGraspEnv(gym.Env):
         self._state = state = task.reset_state(obj, self._params, task.newton_contact)
         self._static_info = task.object_info(obj, state.thresholds, self._params.task)
         self._static_info["object_class"] = task.class_name(self._class_names, obj.class_id)
+        # the frame's label names the object by its class, unless its stiffness was pinned (then by its k~)
+        pinned_material = options is not None and any(
+            options.get(k) is not None for k in ("object_stiffness", "object_shear_modulus_kpa"))
+        self._render_name = "" if pinned_material or obj.class_id < 0 else self._static_info["object_class"]
         obs = task.observation(state.command, state.eq.volume_change, self._params.task, self._params.volume_scale)
         info = task.build_info(state, self._params.task, None, self.info_level, self._static_info)
         if self.render_mode == "human":
@@ -212,7 +219,7 @@ class PneuNetGraspEnv(gym.Env):
 
         if self._state is None:
             raise RuntimeError("call reset() before render()")
-        return render_state(self._state, self._params)
+        return render_state(self._state, self._params, object_name=self._render_name)
 
     def close(self):
         if self._viewer is not None:

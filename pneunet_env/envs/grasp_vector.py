@@ -710,7 +710,7 @@ class PneuNetGraspVectorEnv(VectorEnv):
 
         if self._state is None:
             raise RuntimeError("call reset() before render()")
-        return render_state(_on_host(self._state), self._params, i)
+        return render_state(_on_host(self._state), self._params, i, class_names=self.object_class_names)
 
     def render(self) -> tuple[np.ndarray, ...] | None:
         """``rgb_array``: one frame per sub-env (a tuple of ``(H, W, 3)`` uint8 arrays)."""

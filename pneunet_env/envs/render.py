@@ -29,27 +29,37 @@ What is drawn:
 * the **gauges**: a pressure bar (left), a traction gauge on a log scale from 0.5 Pa to 50 kPa
   (right; ticks: grip traction in green, failure traction and crush traction in red; the bar is green
   above the grip traction, orange below it, red once damaged), the episode's progress (bottom; the hold
-  phase shaded) and a status lamp (top right: grey squeezing, green held, orange dropped, red damaged).
+  phase shaded) and a status lamp (top right: grey squeezing, green held, orange dropped, red damaged);
+* the **label** (top left, on frames of at least ``LABEL_MIN_WIDTH x LABEL_MIN_HEIGHT``, 240 x 180): the object
+  (its catalogue class, else ``k~=1.0e-4``), the step, the pressure in kPa and the state (:func:`frame_status`:
+  free, squeezing, gripping or held in green, slipped in orange, crushed or damaged in red), in a built-in 5 x 8
+  bitmap font (printable ASCII, a numpy constant) at an integer scale (:func:`label_scale`: 1 at 320 x 240, 2 at
+  480 x 360), each glyph ringed by the background's colour so that it reads over the scene; drawn on the final
+  pixels, after the supersampled picture.
 
 Lengths are in units of the chamber width ``w``, like the model. :func:`save_png` writes a PNG with
-``zlib`` only; :func:`contact_sheet` tiles frames. :class:`HumanViewer` shows frames in a matplotlib
-window (imported lazily, only for ``render_mode="human"``).
+``zlib`` only; :func:`contact_sheet` tiles frames over a legend of the colours (:func:`legend_strip`, in the
+same font). :class:`HumanViewer` shows frames in a matplotlib window (imported lazily, only for
+``render_mode="human"``).
 """
 
 from __future__ import annotations
 
 import functools
 import math
-import struct
-import zlib
-from pathlib import Path
 from typing import NamedTuple
 
 import numpy as np
 
+from pneunet_env.envs.font import FONT_HEIGHT, FONT_WIDTH, draw_text, text_mask
+from pneunet_env.envs.png import read_png, save_png
 from pneunet_env.physics.params import ActuatorParams
 
-__all__ = ["RenderState", "render_state", "render_frame", "save_png", "read_png", "contact_sheet", "HumanViewer"]
+__all__ = [
+    "RenderState", "render_state", "render_frame", "save_png", "read_png", "contact_sheet", "legend_strip", "LEGEND",
+    "text_mask", "label_lines", "frame_status", "label_fits", "check_label_size", "label_scale", "LABEL_MIN_WIDTH",
+    "LABEL_MIN_HEIGHT", "FONT_WIDTH", "FONT_HEIGHT", "HumanViewer",
+]
 
 # colours (RGB)
 _BACKGROUND = np.array([248, 248, 244], float)
@@ -93,10 +103,21 @@ class RenderState(NamedTuple):
     in_hold: bool
     progress: float  # step / episode length
     hold_start: float  # squeeze_steps / episode length
+    # what the label says (see :func:`label_lines`); the defaults draw a label of an unnamed object at step 0
+    step: int = 0
+    pressure_kpa: float = 0.0
+    object_name: str = ""  # a catalogue class; "" names the object by its stiffness
+    object_stiffness: float = math.nan  # k~
 
 
-def render_state(state, params, i: int | None = None) -> RenderState:
-    """What a frame shows of an env's :class:`pneunet_env.task.EnvState` (of its entry ``i`` for a batch)."""
+def render_state(
+    state, params, i: int | None = None, class_names: tuple[str, ...] = (), object_name: str | None = None
+) -> RenderState:
+    """What a frame shows of an env's :class:`pneunet_env.task.EnvState` (of its entry ``i`` for a batch).
+
+    The label names the object by ``object_name`` if given, else by its catalogue class (``class_names``, by the
+    object's class code), else (``""``: no class, e.g. the paper's task) by its stiffness ``k~``.
+    """
 
     def at(v):
         return v if i is None else v[i]
@@ -104,6 +125,9 @@ def render_state(state, params, i: int | None = None) -> RenderState:
     eq, obj, thr, st, tp = state.eq, state.obj, state.thresholds, state.task, params.task
     step = int(at(st.step))
     in_contact = bool(at(eq.in_contact))
+    if object_name is None:
+        cid = int(at(obj.class_id))
+        object_name = class_names[cid] if 0 <= cid < len(class_names) else ""
     return RenderState(
         curvature=float(at(eq.curvature)),
         side_strain=float(at(eq.side_strain)),
@@ -122,6 +146,10 @@ def render_state(state, params, i: int | None = None) -> RenderState:
         in_hold=step > tp.squeeze_steps,
         progress=step / tp.episode_steps,
         hold_start=tp.squeeze_steps / tp.episode_steps,
+        step=step,
+        pressure_kpa=float(at(eq.pressure)) * tp.shear_modulus_kpa,
+        object_name=str(object_name),
+        object_stiffness=float(at(obj.stiffness)),
     )
 
 
@@ -205,6 +233,7 @@ class _Layout:
             (a // ss - 1, -(-b // ss) + 1, c // ss - 1, -(-d // ss) + 1),
         ]
         self.gauge_boxes = [(max(a, 0), min(b, height), max(c, 0), min(d, width)) for a, b, c, d in boxes]
+        self.label_x, self.label_y = m + bw + m, m  # the label's top left corner: right of the pressure bar
 
     def _px(self, v) -> int:
         return int(round(float(v) * self.ss))
@@ -542,12 +571,20 @@ def _normal_offset(k: float, x, y):
 
 
 def render_frame(
-    state: RenderState, width: int = 480, height: int = 360, chambers: int = 6, supersample: int = 2
+    state: RenderState, width: int = 480, height: int = 360, chambers: int = 6, supersample: int = 2,
+    label: bool | None = None,
 ) -> np.ndarray:
-    """Draw one state; returns a ``(height, width, 3)`` uint8 array. See the module docstring."""
+    """Draw one state; returns a ``(height, width, 3)`` uint8 array. See the module docstring.
+
+    ``label``: the text label in the top left corner (:func:`label_lines`); ``None`` (default) draws it where the
+    frame is at least ``LABEL_MIN_WIDTH x LABEL_MIN_HEIGHT`` (240 x 180) pixels, ``True`` requires it (a smaller
+    frame raises ``ValueError``), ``False`` leaves it out.
+    """
     width, height, chambers, supersample = int(width), int(height), int(chambers), int(supersample)
     if width < 32 or height < 32:
         raise ValueError(f"frame must be at least 32 x 32 pixels, got {width} x {height}")
+    if label:
+        check_label_size(width, height)
     if chambers < 1:
         raise ValueError(f"chambers must be >= 1, got {chambers}")
     if supersample < 1:
@@ -569,6 +606,9 @@ def render_frame(
         for a2, b2 in ((a, min(b, i0)), (max(a, i1), b)):  # less the scene's rows, done already
             if a2 < b2:
                 _resolve(img, labels, lay, pal, colours, pairs, None, a2, b2, c, d)
+    if label or (label is None and label_fits(width, height)):
+        draw_text(img, label_lines(state), lay.label_x, lay.label_y, label_scale(width, height),
+                  halo=_to_uint8(_BACKGROUND))
     return img
 
 
@@ -732,58 +772,94 @@ def _resolve(img, labels, lay: _Layout, pal, colours, pairs, tint, i0: int, i1: 
 
 
 # ---------------------------------------------------------------------------------------------
+# Text: a 5 x 8 bitmap font, the frame's label, the contact sheet's legend
+# ---------------------------------------------------------------------------------------------
+
+LABEL_MIN_WIDTH, LABEL_MIN_HEIGHT = 240, 180
+"""The smallest frame that carries the label (:func:`render_frame`'s ``label``); below it the label would cover the
+actuator."""
+
+# text colours: dark on the light background, and the state's (darker than the gauges' green and orange, for contrast)
+_TEXT = np.array([32, 36, 44], np.uint8)
+_TEXT_GREEN = np.array([24, 128, 52], np.uint8)
+_TEXT_RED = np.array([196, 20, 20], np.uint8)
+_TEXT_ORANGE = np.array([204, 108, 0], np.uint8)
+
+
+def label_scale(width: int, height: int) -> int:
+    """The label's integer font scale for a frame: 1 a 240 pixels of its width (or of 4/3 its height, if less),
+    at least 1: 1 at 320 x 240, 2 at 480 x 360 and 640 x 480, 3 at 720 x 540."""
+    return max(1, min(int(width), 4 * int(height) // 3) // 240)
+
+
+def label_fits(width: int, height: int) -> bool:
+    """Whether a ``width x height`` frame carries the label (at least ``LABEL_MIN_WIDTH x LABEL_MIN_HEIGHT``)."""
+    return int(width) >= LABEL_MIN_WIDTH and int(height) >= LABEL_MIN_HEIGHT
+
+
+def check_label_size(width: int, height: int) -> None:
+    """``ValueError`` naming the size unless a ``width x height`` frame carries the label."""
+    if int(width) < LABEL_MIN_WIDTH:
+        raise ValueError(f"a frame {width} px wide is too narrow for its label: at least {LABEL_MIN_WIDTH} px")
+    if int(height) < LABEL_MIN_HEIGHT:
+        raise ValueError(f"a frame {height} px high is too low for its label: at least {LABEL_MIN_HEIGHT} px")
+
+
+def frame_status(state: RenderState) -> str:
+    """The state the label names, by the task's rules (first that applies).
+
+    ``"crushed"`` (damaged, and the indentation is past the crush depth now) or ``"damaged"`` (red); ``"slipped"``
+    (dropped in the hold phase; orange); ``"held"`` (a hold-phase step, intact; green); before the hold phase
+    ``"gripping"`` (in contact with the traction at or above the grip traction: it would hold if lifted now; green),
+    ``"squeezing"`` (in contact, below it) or ``"free"`` (out of contact).
+    """
+    if state.damaged:
+        crushed = state.in_contact and float(state.indentation) > float(state.crush_indentation)
+        return "crushed" if crushed else "damaged"
+    if state.dropped:
+        return "slipped"
+    if state.in_hold:
+        return "held"
+    if not state.in_contact:
+        return "free"
+    return "gripping" if float(state.contact_force) >= float(state.grip_traction) else "squeezing"
+
+
+_STATUS_COLOURS = {"crushed": _TEXT_RED, "damaged": _TEXT_RED, "slipped": _TEXT_ORANGE, "held": _TEXT_GREEN,
+                   "gripping": _TEXT_GREEN}
+
+
+def _short_e(x: float) -> str:
+    """``1.0e-4`` for 1e-4, ``1.3e0`` for 1.3: two digits, the exponent without padding."""
+    mantissa, exponent = f"{x:.1e}".split("e")
+    return f"{mantissa}e{int(exponent)}"
+
+
+def label_lines(state: RenderState) -> list[tuple[str, np.ndarray]]:
+    """The label's lines and their colours: the object (its class, else its stiffness, ``k~=1.0e-4``), the step,
+    the pressure in kPa and the state (:func:`frame_status`, in its colour)."""
+    name = state.object_name
+    if not name:
+        k = float(state.object_stiffness)
+        name = "k~=" + _short_e(k) if math.isfinite(k) else "object"
+    status = frame_status(state)
+    return [(name, _TEXT), (f"step {int(state.step)}", _TEXT), (f"{float(state.pressure_kpa):.1f} kPa", _TEXT),
+            (status, _STATUS_COLOURS.get(status, _TEXT))]
+
+
+# ---------------------------------------------------------------------------------------------
 # PNG, contact sheets, the human window
 # ---------------------------------------------------------------------------------------------
 
 
-def _chunk(tag: bytes, data: bytes) -> bytes:
-    return struct.pack(">I", len(data)) + tag + data + struct.pack(">I", zlib.crc32(tag + data) & 0xFFFFFFFF)
+def contact_sheet(
+    frames, columns: int, gutter: int = 4, background: int = 255, legend: bool = True, legend_scale: int | None = None
+) -> np.ndarray:
+    """Tile equal-sized ``HxWx3`` frames, row by row, ``columns`` per row, over a legend of the frames' colours.
 
-
-def save_png(path: str | Path, image: np.ndarray) -> Path:
-    """Write an ``HxWx3`` uint8 array as an 8-bit RGB PNG (zlib only); returns the path."""
-    img = np.ascontiguousarray(image)
-    if img.dtype != np.uint8 or img.ndim != 3 or img.shape[2] != 3:
-        raise ValueError(f"image must be an HxWx3 uint8 array, got {img.dtype} {img.shape}")
-    h, w, _ = img.shape
-    raw = np.zeros((h, 1 + 3 * w), np.uint8)  # filter type 0 on every row
-    raw[:, 1:] = img.reshape(h, 3 * w)
-    png = b"\x89PNG\r\n\x1a\n"
-    png += _chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 8, 2, 0, 0, 0))
-    png += _chunk(b"IDAT", zlib.compress(raw.tobytes(), 6))
-    png += _chunk(b"IEND", b"")
-    path = Path(path)
-    path.write_bytes(png)
-    return path
-
-
-def read_png(path: str | Path) -> np.ndarray:
-    """Read back a PNG written by :func:`save_png` (8-bit RGB, unfiltered rows)."""
-    data = Path(path).read_bytes()
-    if data[:8] != b"\x89PNG\r\n\x1a\n":
-        raise ValueError(f"{path}: not a PNG file")
-    pos, idat, w, h = 8, b"", 0, 0
-    while pos < len(data):
-        (n,) = struct.unpack(">I", data[pos : pos + 4])
-        tag, body = data[pos + 4 : pos + 8], data[pos + 8 : pos + 8 + n]
-        (crc,) = struct.unpack(">I", data[pos + 8 + n : pos + 12 + n])
-        if zlib.crc32(tag + body) & 0xFFFFFFFF != crc:
-            raise ValueError(f"{path}: bad CRC in chunk {tag!r}")
-        if tag == b"IHDR":
-            w, h, depth, ctype, _, _, _ = struct.unpack(">IIBBBBB", body)
-            if depth != 8 or ctype != 2:
-                raise ValueError(f"{path}: only 8-bit RGB is supported")
-        elif tag == b"IDAT":
-            idat += body
-        pos += 12 + n
-    raw = np.frombuffer(zlib.decompress(idat), np.uint8).reshape(h, 1 + 3 * w)
-    if np.any(raw[:, 0] != 0):
-        raise ValueError(f"{path}: filtered rows are not supported")
-    return raw[:, 1:].reshape(h, w, 3).copy()
-
-
-def contact_sheet(frames, columns: int, gutter: int = 4, background: int = 255) -> np.ndarray:
-    """Tile equal-sized ``HxWx3`` frames, row by row, ``columns`` per row."""
+    ``legend``: a strip under the frames (:func:`legend_strip`, as wide as the sheet) saying what the colours
+    and the label mean; ``legend_scale``: its font scale (default: 1 a 900 px of the sheet's width, at least 1).
+    """
     frames = [np.asarray(f) for f in frames]
     if not frames:
         raise ValueError("contact_sheet needs at least one frame")
@@ -797,7 +873,58 @@ def contact_sheet(frames, columns: int, gutter: int = 4, background: int = 255) 
         r, c = divmod(i, columns)
         y, x = gutter + r * (h + gutter), gutter + c * (w + gutter)
         sheet[y : y + h, x : x + w] = f
+    if legend:
+        sheet = np.concatenate([sheet, legend_strip(sheet.shape[1], legend_scale, background, margin=gutter)])
     return sheet
+
+
+# The legend: (swatches, text) per entry, in the palette's colours (see the module docstring)
+LEGEND = (
+    ((_BASE, _ELASTOMER, _CAVITY_HIGH), "finger: base, walls, chambers (bluer: more pressure)"),
+    ((_OBJECT, 0.15 * _OBJECT + 0.85 * _LOADED), "object, loaded zone (oranger: nearer damage)"),
+    ((), "dashed: its undeformed surface"),
+    ((_PRESSURE,), "left bar: pressure"),
+    ((), "right bar: contact traction, log 0.5 Pa to 50 kPa; ticks: grip (green), failure and crush (red)"),
+    ((_GREEN,), "green: held, or gripping (traction above grip)"),
+    ((_ORANGE,), "orange: slipped, or traction below grip"),
+    ((_DAMAGED,), "red: damaged or crushed"),
+    ((_GREY,), "lamp grey: squeeze phase"),
+    ((_PROGRESS, _HOLD), "bottom bar: step, hold phase shaded"),
+    ((), "label: object (or k~), step, pressure, state"),
+)
+"""The contact sheet's legend: each entry's colour swatches (RGB) and its words."""
+
+
+def legend_strip(width: int, scale: int | None = None, background: int = 255, margin: int = 4) -> np.ndarray:
+    """The legend (:data:`LEGEND`) as an ``HxWx3`` uint8 strip ``width`` pixels wide: its entries one after the
+    other, wrapped to the width (an entry wider than the strip is cut at its edge); ``scale``: the font's (default:
+    1 a 900 px of width, at least 1)."""
+    width, margin = int(width), int(margin)
+    s = max(1, width // 900) if scale is None else int(scale)
+    if s < 1:
+        raise ValueError(f"legend scale must be >= 1, got {s}")
+    box, step, gap = (FONT_HEIGHT - 1) * s, (FONT_WIDTH + 1) * s, 3 * (FONT_WIDTH + 1) * s
+    pitch = (FONT_HEIGHT + 4) * s
+    placed, x, row = [], 0, 0  # (row, x, swatches, text) each
+    for swatches, text in LEGEND:
+        w = len(swatches) * (box + s) + (step if swatches else 0) + text_mask(text, s).shape[1]
+        if x > 0 and x + w > width - 2 * margin:
+            x, row = 0, row + 1
+        placed.append((row, x, swatches, text))
+        x += w + gap
+    strip = np.full((2 * margin + (row + 1) * pitch, width, 3), background, np.uint8)
+    for r, x0, swatches, text in placed:
+        y, x = margin + r * pitch + s, margin + x0
+        for colour in swatches:
+            a, b, c, d = y, y + box, x, min(x + box, width)
+            if c < d:
+                strip[a:b, c:d] = _OUTLINE
+                strip[a + 1 : b - 1, c + 1 : d - 1] = _to_uint8(colour)
+            x += box + s
+        if swatches:
+            x += step
+        draw_text(strip, [(text, _TEXT)], x, y, s)
+    return strip
 
 
 class HumanViewer:

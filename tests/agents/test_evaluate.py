@@ -7,14 +7,18 @@ import json
 import numpy as np
 import pytest
 
+from agents.batch import draw_objects
 from agents.evaluate import (
     DEFAULT_MODEL,
+    catalogue_stiffness_range,
     decade_table,
+    draw_bins,
     parse_overrides,
     regime_summary,
+    stiffness_bins,
     stiffness_grid,
 )
-from pneunet_env import EnvConfig
+from pneunet_env import PAPER_TASK, EnvConfig, load_config
 from pneunet_env.cli import main
 from pneunet_env.objects import stiffness_per_modulus
 
@@ -80,12 +84,38 @@ def test_evaluate_rejects_bad_input(tmp_path):
 
 
 def test_stiffness_grid_spans_the_config_range():
-    g = stiffness_grid(EnvConfig(), 5)
+    paper = load_config(**PAPER_TASK)
+    g = stiffness_grid(paper, 5)
     unit = stiffness_per_modulus(10.0, 4.0)  # k~ per kPa of mu_obj at the paper's object (eq. 3.2)
     assert g[0] == pytest.approx(0.1 * unit) and g[-1] == pytest.approx(1500.0 * unit)
     assert g[0] == pytest.approx(6.8e-6, rel=0.02) and g[-1] == pytest.approx(0.10, rel=0.03)
     assert np.allclose(np.diff(np.log(g)), np.log(g[1] / g[0]))
-    assert stiffness_grid(EnvConfig(), 1, 1e-4, 1e-2) == pytest.approx([1e-3])
+    assert stiffness_grid(paper, 1, 1e-4, 1e-2) == pytest.approx([1e-3])
+
+
+def test_stiffness_grid_spans_the_catalogue_on_the_default_task():
+    # the default task draws hand-scale objects: the grid spans them, not the paper ring's unused ranges
+    lo, hi = catalogue_stiffness_range(EnvConfig())
+    assert lo == pytest.approx(1.56e-3, rel=0.01) and hi == pytest.approx(37.3, rel=0.01)
+    g = stiffness_grid(EnvConfig(), 5)
+    assert g[0] == pytest.approx(lo) and g[-1] == pytest.approx(hi)
+    centres, edges = stiffness_bins(EnvConfig(), 4)
+    assert edges[0] == pytest.approx(lo) and edges[-1] == pytest.approx(hi) and centres.size == 4
+    assert centres == pytest.approx(np.sqrt(edges[:-1] * edges[1:]))
+    # the env's own draws fall inside it
+    k = np.asarray(draw_objects(EnvConfig(), list(range(2000))).stiffness)
+    assert lo <= k.min() and k.max() <= hi
+
+
+def test_draw_bins_holds_drawn_objects_of_each_bin():
+    cfg = EnvConfig()
+    _, edges = stiffness_bins(cfg, 3)
+    bins, drawn = draw_bins(cfg, edges, 2, seed=0, chunk=5000)
+    assert [len(b) for b in bins] == [2, 2, 2] and drawn >= 5000
+    k = np.asarray(draw_objects(cfg, [s for b in bins for s in b]).stiffness).reshape(3, 2)
+    for i in range(3):
+        assert ((edges[i] <= k[i]) & (k[i] < edges[i + 1])).all()
+    assert draw_bins(cfg, edges, 2, seed=0, chunk=5000)[0] == bins  # fixed seeds
 
 
 def test_parse_overrides_reads_yaml_values():

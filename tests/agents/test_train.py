@@ -349,16 +349,17 @@ def test_smoke_train_resume_export(tmp_path):
     run_dir = tmp_path / "run"
     vec_env = "batched" if batched_available() else "dummy"
     assert _smoke(run_dir, 2048, vec_env) == 0
-    for name in ("best_model.zip", "best_model_vecnormalize.pkl", "best_model_vecnormalize.json", "final_model.zip",
-                 "final_model_vecnormalize.pkl", "final_model_vecnormalize.json", "config.yaml", "config.project.yaml",
-                 "run.json", "evaluations.npz"):
+    for name in ("initial_model.zip", "best_model.zip", "best_model_vecnormalize.pkl", "best_model_vecnormalize.json",
+                 "final_model.zip", "final_model_vecnormalize.pkl", "final_model_vecnormalize.json", "config.yaml",
+                 "config.project.yaml", "run.json", "evaluations.npz"):
         assert (run_dir / name).is_file(), name
     record = json.loads((run_dir / "run.json").read_text())
     assert record["timesteps"] == 2048 and record["seed"] == 0 and record["seeds"]["eval_env"] == 10_000
     assert record["action"] == "setpoint"
     assert load_train_config(run_dir / "config.yaml") == record["hyperparameters"]  # the run's config, two files
     evals = np.load(run_dir / "evaluations.npz")
-    assert list(evals["timesteps"]) == [1024, 2048] and evals["successes"].shape == (2, 4)  # is_success logged
+    # step 0 (the untrained policy) is evaluated too; is_success is logged
+    assert list(evals["timesteps"]) == [0, 1024, 2048] and evals["successes"].shape == (3, 4)
     ckpt = latest_checkpoint(run_dir)
     assert ckpt is not None and ckpt.name == "model_2048_steps.zip"
     # a model inside the run folder runs as it was trained (its action mode from run.json), not as a rate policy
@@ -373,7 +374,7 @@ def test_smoke_train_resume_export(tmp_path):
     assert record["timesteps"] == 3072
     assert [i["start_timesteps"] for i in record["invocations"]] == [0, 2048]
     evals = np.load(run_dir / "evaluations.npz")  # the earlier evaluations are kept
-    assert list(evals["timesteps"]) == [1024, 2048, 3072] and evals["successes"].shape == (3, 4)
+    assert list(evals["timesteps"]) == [0, 1024, 2048, 3072] and evals["successes"].shape == (4, 4)  # no new step 0
     assert record["invocations"][1]["resumed_from"].endswith("model_2048_steps.zip")
 
     # export, then load through the policy registry (with its VecNormalize statistics)
@@ -467,3 +468,14 @@ def test_full_training_comes_close_to_best_ramp(tmp_path):
         # not hidden: the training itself must still run, within its time limit, and export a model that loads and
         # plays (asserted above).
         pytest.xfail(f"the 2-point target is missed: PPO {ppo:.1%} vs best-ramp {best:.1%} on {len(seeds)} objects")
+
+
+def test_threads_flag_and_what_export_says_it_copies(tmp_path):
+    from agents.train import DEFAULTS, export_source
+
+    assert DEFAULTS["torch_threads"] == 1 and load_train_config(PPO)["torch_threads"] == 1
+    with pytest.raises(SystemExit, match="threads"):
+        main(["train", "--config", str(PPO), "--threads", "0", "--run-dir", str(tmp_path / "t")])
+    assert export_source(tmp_path).startswith("the final model (no evaluation ran")
+    (tmp_path / "best_model.zip").write_bytes(b"")
+    assert export_source(tmp_path) == "the best evaluation's model"

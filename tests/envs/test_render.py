@@ -13,7 +13,22 @@ import numpy as np
 import pytest
 
 import pneunet_env  # noqa: F401  (registers the environment)
-from pneunet_env.envs.render import RenderState, contact_sheet, read_png, render_frame, save_png
+from pneunet_env.envs.render import (
+    FONT_HEIGHT,
+    FONT_WIDTH,
+    LABEL_MIN_HEIGHT,
+    LABEL_MIN_WIDTH,
+    LEGEND,
+    RenderState,
+    contact_sheet,
+    frame_status,
+    label_lines,
+    legend_strip,
+    read_png,
+    render_frame,
+    save_png,
+    text_mask,
+)
 from pneunet_env.physics.params import ActuatorParams
 
 
@@ -32,8 +47,9 @@ def _state(**kw) -> RenderState:
 # frames drawn of them (NAME.png), so that the test compares the renderer alone, whatever the env's physics or
 # defaults become. The cases: (name, reset options, steps of action +1 from reset (seed 0), frame size).
 # The stored frames were drawn by the numpy rasteriser as it was before it was made fast (pixel masks over the
-# whole supersampled canvas); ``python tests/envs/test_render.py`` rewrites them with today's renderer: only
-# when the picture is meant to change.
+# whole supersampled canvas), and are the scene without the text label (``label=False``; the label, drawn over the
+# scene after it, is tested on its own below); ``python tests/envs/test_render.py`` rewrites them with today's
+# renderer: only when the picture is meant to change.
 REFERENCE_DIR = Path(__file__).parent / "data" / "render_reference"
 _WIDE = {"object_curvature": 0.02}  # a wide object: a shallow arc across the frame
 REFERENCE_CASES = (
@@ -77,7 +93,7 @@ def _write_reference_frames(render=render_frame) -> None:
     for name, options, steps, size in REFERENCE_CASES:
         state, frame = _env_state(options, steps, size)
         cases.append({"name": name, "options": options, "steps": steps, "frame": frame, "state": _state_json(state)})
-        path = save_png(REFERENCE_DIR / f"{name}.png", render(state, **frame))
+        path = save_png(REFERENCE_DIR / f"{name}.png", render(state, **frame, label=False))
         print(f"{path}: {path.stat().st_size} bytes")
     (REFERENCE_DIR / "states.json").write_text(json.dumps(cases, indent=1) + "\n")
 
@@ -115,13 +131,14 @@ def test_frames_match_the_reference_frames():
 
     It is drawn the same way (2 x 2 supersampling, the same shapes and outlines, averaged in the same order), so
     frames match to rounding: only a pixel here and there of the loaded zone's tint (computed at the pixel's
-    centre, not averaged over its subpixels) may be off, by a grey level.
+    centre, not averaged over its subpixels) may be off, by a grey level. The references are the scene alone: the
+    text label is left out (``label=False``), and is tested by the tests of the label.
     """
     cases = _reference_cases()
     assert [c["name"] for c in cases] == [c[0] for c in REFERENCE_CASES]
     for case in cases:
         ref = read_png(REFERENCE_DIR / f"{case['name']}.png")
-        got = render_frame(_state_from_json(case["state"]), **case["frame"])
+        got = render_frame(_state_from_json(case["state"]), **case["frame"], label=False)
         assert got.shape == ref.shape == (case["frame"]["height"], case["frame"]["width"], 3), case["name"]
         diff = np.abs(got.astype(int) - ref.astype(int))
         off_16 = np.mean(diff.max(axis=-1) > 16)
@@ -218,7 +235,7 @@ def test_png_round_trip_and_contact_sheet(tmp_path):
     path = save_png(tmp_path / "x.png", img)
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert np.array_equal(read_png(path), img)
-    sheet = contact_sheet([img] * 5, columns=2, gutter=3)
+    sheet = contact_sheet([img] * 5, columns=2, gutter=3, legend=False)
     assert sheet.shape == (3 * 17 + 4 * 3, 2 * 23 + 3 * 3, 3)
     assert np.array_equal(sheet[3:20, 3:26], img)
     with pytest.raises(ValueError):
@@ -259,6 +276,160 @@ def test_render_command_renders_catalogue_classes(tmp_path, capsys):
                          (["--object", "apple", "--stiffness", "1e-3"], "not both")):
         with pytest.raises(SystemExit, match=message):
             cmd.run(parser.parse_args(["--out", str(tmp_path), *bad]))
+
+
+# ---- the text: a bitmap font, the frame's label, the contact sheet's legend ------------------------------------
+
+_TEXT_DARK = (32, 36, 44)  # the label's text colour, and the state's: held/gripping, crushed/damaged, slipped
+_TEXT_GREEN, _TEXT_RED, _TEXT_ORANGE = (24, 128, 52), (196, 20, 20), (204, 108, 0)
+
+
+def _count(img, colour) -> int:
+    return int(np.all(img == np.array(colour, np.uint8), axis=-1).sum())
+
+
+def test_the_font_draws_each_glyph_distinctly():
+    chars = [chr(c) for c in range(32, 127)]
+    glyphs = [text_mask(c) for c in chars]
+    assert all(g.shape == (FONT_HEIGHT, FONT_WIDTH) and g.dtype == bool for g in glyphs)
+    assert not glyphs[0].any() and all(g.any() for g in glyphs[1:])  # a space is blank, nothing else is
+    assert len({g.tobytes() for g in glyphs}) == len(chars)  # no two printable characters look alike
+    # a line: glyphs set 6 pixels apart; an integer scale repeats each pixel; what is not printable ASCII is a "?"
+    line = text_mask("k~=1.0e-4")
+    assert line.shape == (FONT_HEIGHT, 9 * (FONT_WIDTH + 1) - 1)
+    assert np.array_equal(line[:, 6:11], text_mask("~")) and not line[:, 5].any()
+    assert np.array_equal(text_mask("kPa", 3), np.kron(text_mask("kPa"), np.ones((3, 3), bool)))
+    assert np.array_equal(text_mask("\u00b5"), text_mask("?"))
+    assert text_mask("").shape == (FONT_HEIGHT, 0)
+
+
+def test_the_label_says_object_step_pressure_and_state():
+    named = _state(object_name="apple", step=20, pressure_kpa=33.94, in_contact=True, contact_force=1e-2)
+    assert [t for t, _ in label_lines(named)] == ["apple", "step 20", "33.9 kPa", "gripping"]
+    unnamed = _state(object_stiffness=1e-4)  # the paper's task: no classes, the object is its stiffness
+    assert label_lines(unnamed)[0][0] == "k~=1.0e-4" and label_lines(_state(object_stiffness=1.3))[0][0] == "k~=1.3e0"
+    contact = dict(in_contact=True, indentation=0.5, contact_force=1e-3)
+    cases = [
+        (_state(), "free"),
+        (_state(**contact), "squeezing"),  # below the grip traction (2e-3)
+        (_state(**{**contact, "contact_force": 2e-3}), "gripping"),
+        (_state(in_hold=True, **contact), "held"),
+        (_state(in_hold=True, dropped=True), "slipped"),
+        (_state(damaged=True, **contact), "damaged"),  # overstressed, not crushed through (0.5 < 2)
+        (_state(damaged=True, dropped=True, **{**contact, "indentation": 2.5}), "crushed"),
+    ]
+    assert [frame_status(st) for st, _ in cases] == [w for _, w in cases]
+
+
+def _corner(img):  # the label's corner: the top left third of the frame's width, the top quarter of its height
+    return img[: img.shape[0] // 4, : img.shape[1] // 3]
+
+
+def test_the_label_is_drawn_in_the_top_left_corner():
+    st = _state(object_name="kiwifruit", step=7, pressure_kpa=12.3, curvature=0.3, pressure_fraction=0.4)
+    for width, height in ((320, 240), (480, 360)):
+        with_label, without = render_frame(st, width, height), render_frame(st, width, height, label=False)
+        changed = np.any(with_label != without, axis=-1)
+        rows, cols = np.nonzero(changed)
+        assert rows.max() < height // 4 and cols.max() < width // 3  # in the corner, and only there
+        assert _count(_corner(with_label), _TEXT_DARK) > 100
+        assert np.array_equal(render_frame(st, width, height, label=True), with_label)
+    assert np.array_equal(render_frame(st, 200, 150), render_frame(st, 200, 150, label=False))  # too small: none
+    with pytest.raises(ValueError, match="200 px wide"):
+        render_frame(st, 200, 150, label=True)
+    with pytest.raises(ValueError, match="150 px high"):
+        render_frame(st, 320, 150, label=True)
+    assert (LABEL_MIN_WIDTH, LABEL_MIN_HEIGHT) == (240, 180)
+
+
+def test_the_label_changes_with_the_pressure_and_the_state_in_its_colour():
+    contact = dict(curvature=0.0205, in_contact=True, indentation=1.0, contact_force=1e-3, object_name="apple")
+
+    def corner(**kw):
+        return _corner(render_frame(_state(**{**contact, **kw}), 320, 240))
+
+    base = corner(step=3, pressure_kpa=10.0)
+    assert not np.array_equal(base, corner(step=3, pressure_kpa=20.0))
+    assert not np.array_equal(base, corner(step=4, pressure_kpa=10.0))
+    for kw, colour in ((dict(in_hold=True), _TEXT_GREEN), (dict(damaged=True), _TEXT_RED),
+                       (dict(in_hold=True, dropped=True), _TEXT_ORANGE)):
+        img = corner(**kw)
+        assert _count(img, colour) > 20, kw  # the state, in its colour
+        others = {_TEXT_GREEN, _TEXT_RED, _TEXT_ORANGE} - {colour}
+        assert all(_count(img, c) == 0 for c in others), kw
+    assert all(_count(base, c) == 0 for c in (_TEXT_GREEN, _TEXT_RED, _TEXT_ORANGE))  # "squeezing": no colour
+
+
+def test_the_env_labels_its_frames_with_the_class_or_the_stiffness():
+    def first_line(env_id, options=None):
+        env = gym.make(env_id, render_mode="rgb_array", render_width=240, render_height=180)
+        env.reset(seed=2, options=options)
+        env.step(np.array([1.0], np.float32))
+        state = env.unwrapped.render_state()
+        frame = env.render()
+        env.close()
+        assert state.step == 1 and state.pressure_kpa > 0.0
+        assert np.array_equal(frame, render_frame(state, 240, 180))
+        assert not np.array_equal(frame, render_frame(state, 240, 180, label=False))
+        return label_lines(state)[0][0]
+
+    env = gym.make("PneuNetGrasp-v0")
+    _, info = env.reset(seed=2)
+    assert first_line("PneuNetGrasp-v0") == info["object_class"]  # a kitchen class
+    assert first_line("PneuNetGrasp-v0", {"object_stiffness": 1e-4}) == "k~=1.0e-4"  # pinned: not the class's
+    assert first_line("PneuNetGrasp-Paper-v0", {"object_stiffness": 1e-5}) == "k~=1.0e-5"  # no classes
+
+
+def test_contact_sheets_carry_a_legend():
+    frame = render_frame(_state(object_name="apple"), 320, 240)
+    bare = contact_sheet([frame] * 4, columns=2, legend=False)
+    sheet = contact_sheet([frame] * 4, columns=2)
+    assert sheet.shape[1] == bare.shape[1] and sheet.shape[0] > bare.shape[0] + 2 * FONT_HEIGHT
+    assert np.array_equal(sheet[: bare.shape[0]], bare)
+    strip = sheet[bare.shape[0] :]
+    assert np.array_equal(strip, legend_strip(bare.shape[1], margin=4))
+    assert _count(strip, _TEXT_DARK) > 1000  # the words
+    for colours, _ in LEGEND:  # each entry's swatches, in the palette's colours
+        for c in colours:
+            assert _count(strip, np.clip(np.rint(c), 0, 255)) > 0, c
+    # the entries wrap to the width: a narrower sheet, a taller strip; a larger scale, larger words
+    assert legend_strip(400).shape[0] > legend_strip(1600).shape[0]
+    assert legend_strip(1600, scale=2).shape[0] > legend_strip(1600, scale=1).shape[0]
+
+
+def _render_args(*argv):
+    from pneunet_env.cli import render as cmd
+
+    parser = argparse.ArgumentParser()
+    cmd.add_arguments(parser)
+    return cmd, parser.parse_args(list(argv))
+
+
+def test_render_command_writes_the_sheet_alone_without_out(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)  # nothing but the sheet may be written, here or anywhere
+    cmd, args = _render_args("--stiffness", "1e-2", "--steps", "2", "--columns", "3", "--width", "240",
+                             "--height", "180", "--sheet", "pics/sheet.png")
+    assert cmd.run(args) == 0
+    assert [p.relative_to(tmp_path).as_posix() for p in tmp_path.rglob("*")] == ["pics", "pics/sheet.png"]
+    sheet = read_png(tmp_path / "pics" / "sheet.png")
+    assert sheet.shape[1] == 3 * 240 + 4 * 4 and sheet.shape[0] > 180 + 2 * 4  # a row of frames, and the legend
+
+
+def test_render_command_refuses_a_frame_too_small_for_its_label(tmp_path):
+    cmd, _ = _render_args("--out", str(tmp_path))
+    for bad, message in ((["--width", "200"], r"--width 200: .*\[240, 4096\]"),
+                         (["--height", "100"], r"--height 100: .*\[180, 4096\]"),
+                         (["--width", "5000"], r"--width 5000"),
+                         ([], "give --out DIR .* or --sheet PNG"),
+                         (["--env", "PneuNetGrasp-Paper-v0", "--object", "apple"], "has no classes")):
+        out = [] if not bad else ["--out", str(tmp_path)]
+        with pytest.raises(SystemExit, match=message):
+            cmd.run(_render_args(*out, *bad)[1])
+    config = tmp_path / "small.yaml"
+    config.write_text("render:\n  width: 160\n  height: 120\n")
+    with pytest.raises(SystemExit, match="render.width 160"):
+        cmd.run(_render_args("--sheet", str(tmp_path / "s.png"), "--config", str(config))[1])
+    assert not (tmp_path / "frames").exists() and not (tmp_path / "s.png").exists()
 
 
 if __name__ == "__main__":  # python tests/envs/test_render.py: rewrite the reference frames

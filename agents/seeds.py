@@ -1,0 +1,277 @@
+"""``pneunet-grasp train --seeds N``: one training config over ``N`` seeds, and what the seeds say together.
+
+One seed proves little: an untrained network may already command a good blind pressure (its initial mean action
+is a pressure setpoint), and two seeds of the same config can land far apart. So every learner is reported over
+seeds, next to its own untrained start:
+
+1. **Training.** Seed ``s`` (``seed``, ``seed + 1``, ...) trains in ``RUN_DIR/seed-<s>`` as a plain
+   ``pneunet-grasp train`` run (:func:`agents.train.train`), evaluated at step 0 (the untrained policy, also saved
+   as ``initial_model.zip``) and every ``eval_freq`` steps. A seed whose ``run.json`` exists is done and kept; one
+   with checkpoints but no ``run.json`` resumes from its newest checkpoint: running the same command again resumes
+   an interrupted study. ``--jobs J`` trains ``J`` seeds at once, one process each.
+2. **Scoring.** Each seed's best evaluation's model (what ``--export`` ships) and its untrained start are run on the
+   same held-out objects (``--objects``, default 400: the objects ``pneunet-grasp demo --objects 400`` draws), by
+   regime (force- or position-controlled, from the mechanics), with best-ramp on the same objects.
+3. **Outputs.** ``RUN_DIR/seeds.json`` (every seed's curve and scores; mean, standard deviation, min and max over
+   seeds) and ``RUN_DIR/learning_curves.png`` (success against timesteps, each seed and the mean with its range,
+   best-ramp drawn on it; and the held-out success of each seed, untrained against trained). ``--export DIR/NAME``
+   exports the **median seed's** model (by held-out success on all objects), and its JSON says so and lists every
+   seed's score.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+__all__ = ["run_seeds", "train_seed", "score_seeds", "summarise", "plot_seeds", "median_seed"]
+
+
+def _seed_dir(run_dir: Path, seed: int) -> Path:
+    return run_dir / f"seed-{seed}"
+
+
+def train_seed(hp: dict[str, Any], run_dir: Path, progress: bool, config_path: str, command: str) -> dict[str, Any]:
+    """Train one seed in ``run_dir`` (resumed from its newest checkpoint if it has one); its run record.
+
+    A run folder with a ``run.json`` is a finished seed: its record is returned as it is."""
+    from agents.train import latest_checkpoint, train
+
+    record_path = run_dir / "run.json"
+    if record_path.is_file():
+        return json.loads(record_path.read_text())
+    resume = latest_checkpoint(run_dir)
+    record = train(hp, run_dir, resume, progress=progress, config_path=config_path)
+    record["command"] = command
+    tmp = record_path.with_name(record_path.name + ".tmp")
+    tmp.write_text(json.dumps(record, indent=1, default=str) + "\n")
+    tmp.replace(record_path)
+    return record
+
+
+def _train_job(job: tuple) -> dict[str, Any]:  # a process of the pool: module-level, so that it pickles
+    return train_seed(*job)
+
+
+def _curve(run_dir: Path) -> dict[str, list[float]]:
+    data = np.load(run_dir / "evaluations.npz")
+    out = {"timesteps": [int(t) for t in data["timesteps"]],
+           "mean_return": [float(x) for x in data["results"].mean(axis=1)]}
+    if "successes" in data and len(data["successes"]):
+        out["success"] = [float(x) for x in data["successes"].mean(axis=1)]
+    return out
+
+
+def _rates(success: np.ndarray, regime: np.ndarray) -> dict[str, float | None]:
+    from pneunet_env.physics.regimes import REGIMES
+
+    out: dict[str, float | None] = {"all": float(success.mean())}
+    for code, name in enumerate(REGIMES):
+        m = regime == code
+        if m.any() or code < 2:  # "unreachable" only where the task has such objects
+            out[name] = float(success[m].mean()) if m.any() else None
+    return out
+
+
+def score_seeds(hp: dict[str, Any], seed_dirs: dict[int, Path], objects: int) -> dict[str, Any]:
+    """Each seed's best model and untrained start, and best-ramp, on ``objects`` held-out objects (batched:
+    :func:`agents.batch.run_policy`); success by regime."""
+    from agents.batch import episode_seeds, run_policy
+    from agents.evaluate import object_regimes
+    from agents.policies import make_policy
+    from pneunet_env.config import load_config
+
+    cfg = load_config(None, **hp["env_kwargs"])
+    seeds = episode_seeds(objects, 0, held_out=True)
+    ramp = run_policy(make_policy("best-ramp", cfg), cfg, seeds)
+    regime = object_regimes(ramp.stiffness, ramp.curvature, cfg)
+    out: dict[str, Any] = {"objects": int(objects), "object_seeds": f"{int(seeds[0])} + i (demo's held-out objects)",
+                           "regime_counts": {name: int((regime == code).sum()) for code, name in
+                                             enumerate(("force-controlled", "position-controlled"))
+                                             if (regime == code).any()},
+                           "best_ramp": _rates(ramp.success[0], regime), "seeds": {}}
+    for seed, folder in seed_dirs.items():
+        row = {}
+        for key, name in (("trained", "best_model.zip"), ("untrained", "initial_model.zip")):
+            path = folder / name
+            if not path.is_file() and key == "trained":
+                path = folder / "final_model.zip"
+            if not path.is_file():
+                row[key] = None
+                continue
+            entry = make_policy(str(path), cfg)
+            row[key] = _rates(run_policy(entry, cfg, seeds).success[0], regime)
+        out["seeds"][str(seed)] = row
+    return out
+
+
+def _spread(values: list[float]) -> dict[str, float]:
+    x = np.asarray([v for v in values if v is not None], dtype=float)
+    if not len(x):
+        return {"mean": math.nan, "std": math.nan, "min": math.nan, "max": math.nan, "n": 0}
+    return {"mean": float(x.mean()), "std": float(x.std(ddof=1)) if len(x) > 1 else 0.0, "min": float(x.min()),
+            "max": float(x.max()), "n": int(len(x))}
+
+
+def summarise(scores: dict[str, Any]) -> dict[str, Any]:
+    """Mean, sample standard deviation, min and max over seeds of every held-out rate, trained and untrained."""
+    out: dict[str, Any] = {}
+    for key in ("trained", "untrained"):
+        rows = [r[key] for r in scores["seeds"].values() if r.get(key)]
+        out[key] = {g: _spread([r[g] for r in rows]) for g in (rows[0] if rows else {})}
+    return out
+
+
+def median_seed(scores: dict[str, Any]) -> int:
+    """The seed whose trained model's held-out success (all objects) is the median (the lower one of an even
+    count), ties broken by the seed."""
+    ranked = sorted((r["trained"]["all"], int(s)) for s, r in scores["seeds"].items() if r.get("trained"))
+    return ranked[(len(ranked) - 1) // 2][1]
+
+
+def plot_seeds(result: dict[str, Any], path: Path) -> Path | None:
+    """``learning_curves.png``: the evaluation success against timesteps (each seed thin, the mean bold, the range
+    shaded, best-ramp dashed), and each seed's held-out success, untrained start against trained model."""
+    try:
+        from agents.evaluate import _matplotlib
+
+        plt = _matplotlib()
+    except ImportError:
+        return None
+    curves = {s: c for s, c in result["curves"].items() if "success" in c}
+    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(10, 3.8), gridspec_kw={"width_ratios": [1.7, 1]})
+    if curves:
+        n = min(len(c["timesteps"]) for c in curves.values())
+        t = np.asarray(next(iter(curves.values()))["timesteps"][:n], dtype=float)
+        ys = np.array([c["success"][:n] for c in curves.values()])
+        for c in curves.values():
+            ax.plot(c["timesteps"], c["success"], lw=0.8, alpha=0.5, color="#2ca02c")
+        ax.fill_between(t, ys.min(axis=0), ys.max(axis=0), color="#2ca02c", alpha=0.15, lw=0,
+                        label=f"range over {len(curves)} seeds")
+        ax.plot(t, ys.mean(axis=0), "o-", ms=3, lw=2, color="#1b7a1b", label="mean over seeds")
+    refs = [r for r in result["eval_best_ramp"].values() if r is not None]
+    if refs:
+        ax.axhline(float(np.mean(refs)), color="#1f5fbf", ls="--", lw=1.3, label="best-ramp, same objects")
+    ax.set_xlabel("timesteps (step 0: the untrained policy)")
+    ax.set_ylabel("success rate (evaluation objects)")
+    ax.set_ylim(-0.02, 1.02)
+    ax.grid(True, alpha=0.3)
+    ax.legend(fontsize=8, loc="lower right")
+    scores = result["held_out"]
+    seeds = list(scores["seeds"])
+    x = np.arange(len(seeds))
+    for key, marker, colour, dx in (("untrained", "o", "#999999", -0.12), ("trained", "s", "#1b7a1b", 0.12)):
+        y = [scores["seeds"][s][key]["all"] if scores["seeds"][s].get(key) else np.nan for s in seeds]
+        ax2.plot(x + dx, y, marker, color=colour, ms=7, ls="none", label=f"{key} (step 0)" if key == "untrained"
+                 else "trained (best evaluation's model)")
+    ax2.axhline(scores["best_ramp"]["all"], color="#1f5fbf", ls="--", lw=1.3, label="best-ramp")
+    med = result.get("median_seed")
+    ax2.set_xticks(x, [f"{s}*" if med is not None and int(s) == med else s for s in seeds])
+    ax2.set_xlabel("seed (*: the median seed, exported)")
+    ax2.set_ylabel(f"success, {scores['objects']} held-out objects")
+    ax2.set_ylim(-0.02, 1.02)
+    ax2.grid(True, alpha=0.3)
+    ax2.legend(fontsize=8, loc="lower right")
+    fig.suptitle(f"{result['algo'].upper()} over {len(seeds)} seeds ({result['observation']}): learning curves and "
+                 "held-out success against the untrained start", fontsize=9)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(path.stem + ".tmp.png")
+    fig.savefig(tmp, dpi=120)
+    plt.close(fig)
+    tmp.replace(path)
+    return path
+
+
+def _command(args: argparse.Namespace, run_dir: Path, seed: int) -> str:
+    from agents.train import _command as one
+
+    single = argparse.Namespace(**{**vars(args), "seed": seed, "export": None, "resume": None})
+    return one(single, run_dir)
+
+
+def _pct(x: float | None) -> str:
+    return "-" if x is None or not math.isfinite(x) else f"{100 * x:.1f} %"
+
+
+def run_seeds(args: argparse.Namespace, hp: dict[str, Any], run_dir: Path) -> int:
+    """The ``--seeds`` form of ``pneunet-grasp train`` (see the module's docstring)."""
+    from agents.train import export
+
+    n, jobs, objects = args.seeds, args.jobs, args.objects
+    for flag, value in (("--seeds", n), ("--jobs", jobs), ("--objects", objects)):
+        if value < 1:
+            raise SystemExit(f"pneunet-grasp train: {flag} must be >= 1, got {value}")
+    if args.resume is not None:
+        raise SystemExit("pneunet-grasp train: --seeds resumes by itself (run the same command again); drop --resume")
+    first = hp["seed"]
+    seeds = list(range(first, first + n))
+    dirs = {s: _seed_dir(run_dir, s) for s in seeds}
+    jobs_list = [({**hp, "seed": s}, dirs[s], not args.no_progress and jobs == 1, str(args.config),
+                  _command(args, dirs[s], s)) for s in seeds]
+    todo = [s for s in seeds if not (dirs[s] / "run.json").is_file()]
+    print(f"training {hp['algo'].upper()} over {n} seeds ({', '.join(map(str, seeds))}; {len(todo)} to train, "
+          f"{jobs} at once) for {hp['n_timesteps']} timesteps each -> {run_dir}/seed-<s>")
+    records: dict[int, dict[str, Any]] = {}
+    if jobs > 1 and len(todo) > 1:
+        import multiprocessing as mp
+        from concurrent.futures import ProcessPoolExecutor
+
+        with ProcessPoolExecutor(max_workers=min(jobs, len(todo)), mp_context=mp.get_context("spawn")) as pool:
+            for s, record in zip(todo, pool.map(_train_job, [jobs_list[seeds.index(s)] for s in todo]), strict=True):
+                records[s] = record
+                print(f"seed {s}: {record['timesteps']} timesteps in {record['total_wall_s']:.0f} s; best evaluation "
+                      f"{record['best_eval']}")
+    for s, job in zip(seeds, jobs_list, strict=True):
+        if s not in records:
+            records[s] = train_seed(*job)
+            if s in todo:
+                print(f"seed {s}: {records[s]['timesteps']} timesteps in {records[s]['total_wall_s']:.0f} s; best "
+                      f"evaluation {records[s]['best_eval']}")
+    print(f"scoring every seed's model and its untrained start on {objects} held-out objects ...")
+    held_out = score_seeds(hp, dirs, objects)
+    result: dict[str, Any] = {
+        "algo": hp["algo"], "seeds": seeds,
+        "observation": ("pressure and chamber volume" if hp["env_kwargs"].get("observe_volume") else "pressure only"),
+        "n_timesteps": hp["n_timesteps"], "config": str(args.config), "hyperparameters": hp,
+        "timesteps": {str(s): records[s]["timesteps"] for s in seeds},
+        "wall_s": {str(s): records[s]["total_wall_s"] for s in seeds},
+        "curves": {str(s): _curve(dirs[s]) for s in seeds if (dirs[s] / "evaluations.npz").is_file()},
+        "eval_best_ramp": {str(s): records[s].get("best_ramp_eval_success_rate") for s in seeds},
+        "held_out": held_out, "summary": summarise(held_out), "median_seed": median_seed(held_out),
+    }
+    path = run_dir / "seeds.json"
+    tmp = path.with_name("seeds.json.tmp")
+    tmp.write_text(json.dumps(result, indent=1, default=str) + "\n")
+    tmp.replace(path)
+    png = plot_seeds(result, run_dir / "learning_curves.png")
+    groups = list(result["summary"]["trained"])
+    print(f"\nheld-out success over {n} seeds ({objects} objects; mean ± std [min, max]):")
+    print(f"{'':>22}" + "".join(f"  {g:>30}" for g in groups))
+    for key in ("untrained", "trained"):
+        cells = []
+        for g in groups:
+            st = result["summary"][key][g]
+            cells.append(f"{_pct(st['mean'])} ± {100 * st['std']:.1f} [{_pct(st['min'])}, {_pct(st['max'])}]")
+        print(f"{key + (' (step 0)' if key == 'untrained' else ''):>22}" + "".join(f"  {c:>30}" for c in cells))
+    print(f"{'best-ramp':>22}" + "".join(f"  {_pct(held_out['best_ramp'][g]):>30}" for g in groups))
+    print(f"median seed: {result['median_seed']}; wrote {path}" + (f" and {png}" if png else ""))
+    if args.export is not None:
+        s = result["median_seed"]
+        zip_path = export(dirs[s], args.export, records[s])
+        meta_path = Path(args.export).with_suffix(".json")
+        meta = json.loads(meta_path.read_text())
+        meta["seed_study"] = {
+            "chosen": f"the median of {n} seeds by held-out success (all {objects} objects)", "seed": s,
+            "held_out": held_out["seeds"][str(s)], "every_seed": held_out["seeds"], "best_ramp": held_out["best_ramp"],
+            "summary": result["summary"], "study": str(path)}
+        tmp = meta_path.with_name(meta_path.name + ".tmp")
+        tmp.write_text(json.dumps(meta, indent=1, default=str) + "\n")
+        tmp.replace(meta_path)
+        print(f"exported seed {s}'s best evaluation's model (the median seed) to {zip_path}")
+    return 0
