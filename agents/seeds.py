@@ -6,9 +6,10 @@ seeds, next to its own untrained start:
 
 1. **Training.** Seed ``s`` (``seed``, ``seed + 1``, ...) trains in ``RUN_DIR/seed-<s>`` as a plain
    ``pneunet-grasp train`` run (:func:`agents.train.train`), evaluated at step 0 (the untrained policy, also saved
-   as ``initial_model.zip``) and every ``eval_freq`` steps. A seed whose ``run.json`` exists is done and kept; one
-   with checkpoints but no ``run.json`` resumes from its newest checkpoint: running the same command again resumes
-   an interrupted study. ``--jobs J`` trains ``J`` seeds at once, one process each.
+   as ``initial_model.zip``) and every ``eval_freq`` steps. A seed whose ``run.json`` reached ``n_timesteps`` is
+   done and kept; any other resumes from its newest checkpoint: running the same command again resumes an
+   interrupted study, and a larger ``--timesteps`` extends a finished one. ``--jobs J`` trains ``J`` seeds at
+   once, one process each.
 2. **Scoring.** Each seed's best evaluation's model (what ``--export`` ships) and its untrained start are run on the
    same held-out objects (``--objects``, default 400: the objects ``pneunet-grasp demo --objects 400`` draws), by
    regime (force- or position-controlled, from the mechanics), with best-ramp on the same objects.
@@ -39,19 +40,34 @@ def _seed_dir(run_dir: Path, seed: int) -> Path:
 def train_seed(hp: dict[str, Any], run_dir: Path, progress: bool, config_path: str, command: str) -> dict[str, Any]:
     """Train one seed in ``run_dir`` (resumed from its newest checkpoint if it has one); its run record.
 
-    A run folder with a ``run.json`` is a finished seed: its record is returned as it is."""
+    A seed whose ``run.json`` reached ``hp["n_timesteps"]`` is done: its record is returned as it is. One that
+    stopped short (interrupted, or a study extended by a larger ``--timesteps``) resumes from its newest checkpoint."""
     from agents.train import latest_checkpoint, train
 
+    if _done(run_dir, hp):
+        return json.loads((run_dir / "run.json").read_text())
     record_path = run_dir / "run.json"
-    if record_path.is_file():
-        return json.loads(record_path.read_text())
     resume = latest_checkpoint(run_dir)
+    if record_path.is_file() and (run_dir / "final_model.zip").is_file():  # a finished run, extended: from its end
+        steps = int(json.loads(record_path.read_text()).get("timesteps", 0))
+        if resume is None or steps > int(resume.stem.split("_")[1]):
+            resume = run_dir / "final_model.zip"
     record = train(hp, run_dir, resume, progress=progress, config_path=config_path)
     record["command"] = command
     tmp = record_path.with_name(record_path.name + ".tmp")
     tmp.write_text(json.dumps(record, indent=1, default=str) + "\n")
     tmp.replace(record_path)
     return record
+
+
+def _done(run_dir: Path, hp: dict[str, Any]) -> bool:
+    path = run_dir / "run.json"
+    if not path.is_file():
+        return False
+    try:
+        return int(json.loads(path.read_text())["timesteps"]) >= int(hp["n_timesteps"])
+    except (ValueError, KeyError, TypeError):
+        return False
 
 
 def _train_job(job: tuple) -> dict[str, Any]:  # a process of the pool: module-level, so that it pickles
@@ -214,7 +230,7 @@ def run_seeds(args: argparse.Namespace, hp: dict[str, Any], run_dir: Path) -> in
     dirs = {s: _seed_dir(run_dir, s) for s in seeds}
     jobs_list = [({**hp, "seed": s}, dirs[s], not args.no_progress and jobs == 1, str(args.config),
                   _command(args, dirs[s], s)) for s in seeds]
-    todo = [s for s in seeds if not (dirs[s] / "run.json").is_file()]
+    todo = [s for s in seeds if not _done(dirs[s], {**hp, "seed": s})]
     print(f"training {hp['algo'].upper()} over {n} seeds ({', '.join(map(str, seeds))}; {len(todo)} to train, "
           f"{jobs} at once) for {hp['n_timesteps']} timesteps each -> {run_dir}/seed-<s>")
     records: dict[int, dict[str, Any]] = {}

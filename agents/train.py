@@ -421,16 +421,27 @@ def _callbacks(hp, run_dir: Path, eval_env, seed: int, deadline: float, resuming
                 self.evaluations_length = [list(r) for r in data["ep_lengths"]]
                 if "successes" in data:
                     self.evaluations_successes = [list(r) for r in data["successes"]]
-                if len(self.evaluations_results):
-                    self.best_mean_reward = float(max(np.mean(r) for r in self.evaluations_results))
+                pairs = zip(self.evaluations_timesteps, self.evaluations_results, strict=True)
+                trained = [r for t, r in pairs if t > 0]
+                if trained:  # step 0, the untrained start, is never the best model
+                    self.best_mean_reward = float(max(np.mean(r) for r in trained))
 
         def _on_training_start(self) -> None:
-            """A new run is evaluated before its first update too: step 0, the untrained policy."""
+            """A new run is evaluated before its first update too: step 0, the untrained policy, the learning curve's
+            start. It is logged but cannot become the best model: what a run exports is a trained model (an
+            untrained network may already command a good blind pressure, and would otherwise be exported as the
+            "trained" one, as 0.7's first seed study found)."""
             super()._on_training_start()
             if not resuming and self.eval_freq > 0:
                 calls, self.n_calls = self.n_calls, 0
-                self._on_step()
-                self.n_calls = calls
+                path, on_best = self.best_model_save_path, self.callback_on_new_best
+                self.best_model_save_path, self.callback_on_new_best = None, None
+                try:
+                    self._on_step()
+                finally:
+                    self.n_calls = calls
+                    self.best_model_save_path, self.callback_on_new_best = path, on_best
+                    self.best_mean_reward = -float("inf")
 
         def _on_step(self) -> bool:
             if self.eval_freq > 0 and self.n_calls % self.eval_freq == 0:
@@ -571,8 +582,9 @@ def train(hp: dict[str, Any], run_dir: Path, resume: Path | None = None, progres
     best = {}
     if evals.is_file():
         data = np.load(evals)
-        if len(data["timesteps"]):
-            i = int(np.argmax(data["results"].mean(axis=1)))
+        trained = np.flatnonzero(data["timesteps"] > 0)  # step 0 is the untrained start, never the best model
+        if len(trained):
+            i = int(trained[np.argmax(data["results"][trained].mean(axis=1))])
             best = {"timesteps": int(data["timesteps"][i]), "mean_reward": float(data["results"][i].mean())}
             if "successes" in data and len(data["successes"]):
                 best["success_rate"] = float(np.mean(data["successes"][i]))
@@ -647,7 +659,8 @@ def plot_training(run_dir: Path, path: Path | None = None, reference: float | No
         ax.plot(t, data["successes"].mean(axis=1), "o-", ms=3, color="#2ca02c", label="agent (deterministic)")
     if reference is not None:
         ax.axhline(reference, color="#1f5fbf", ls="--", lw=1.3, label=reference_label)
-    best = int(np.argmax(data["results"].mean(axis=1)))
+    trained = np.flatnonzero(t > 0) if (t > 0).any() else np.arange(len(t))  # the best model is a trained one
+    best = int(trained[np.argmax(data["results"][trained].mean(axis=1))])
     ax.axvline(t[best], color="grey", ls=":", lw=1)
     ax.set_ylabel("success rate")
     vals = list(data["successes"].mean(axis=1)) if "successes" in data and len(data["successes"]) else []
@@ -768,7 +781,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def _command(args: argparse.Namespace, run_dir: Path) -> str:
     """The command line of this invocation (recorded in run.json and the exported model's JSON)."""
-    parts = ["pneunet-grasp train", f"--config {args.config}", f"--run-dir {run_dir}"]
+    parts = ["pneunet-grasp train", f"--config {getattr(args, 'config_given', args.config)}", f"--run-dir {run_dir}"]
     for flag, value in (("--timesteps", args.timesteps), ("--n-envs", args.n_envs), ("--seed", args.seed),
                         ("--eval-freq", args.eval_freq), ("--n-eval-episodes", args.n_eval_episodes),
                         ("--checkpoint-freq", args.checkpoint_freq), ("--max-minutes", args.max_minutes),
@@ -785,6 +798,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         from agents.resources import resolve_config
 
+        args.config_given = getattr(args, "config_given", args.config)  # as typed: the run's record shows it
         args.config = str(resolve_config(args.config, "train"))
         hp = load_train_config(args.config)
         for key, value in (("n_timesteps", args.timesteps), ("n_envs", args.n_envs), ("seed", args.seed),

@@ -146,6 +146,7 @@ def main(argv: list[str] | None = None) -> int:
         from agents.resources import resolve_config
 
         try:
+            args.config_given = args.config
             args.config = str(resolve_config(args.config, "train" if name == "train" else "env"))
         except ValueError as exc:
             parser.error(str(exc))

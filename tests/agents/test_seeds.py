@@ -86,6 +86,7 @@ def test_seed_study_trains_scores_exports_the_median_and_resumes(tmp_path, capsy
     for s in ("0", "1", "2"):
         assert result["curves"][s]["timesteps"] == [0, 256, 512]  # step 0 is the untrained start
         assert (run_dir / f"seed-{s}" / "initial_model.zip").is_file()
+        assert json.loads((run_dir / f"seed-{s}" / "run.json").read_text())["best_eval"]["timesteps"] > 0
         row = result["held_out"]["seeds"][s]
         assert 0.0 <= row["trained"]["all"] <= 1.0 and 0.0 <= row["untrained"]["all"] <= 1.0
     trained = [result["held_out"]["seeds"][s]["trained"]["all"] for s in ("0", "1", "2")]
@@ -103,6 +104,15 @@ def test_seed_study_trains_scores_exports_the_median_and_resumes(tmp_path, capsy
     assert "0 to train" in capsys.readouterr().out
     assert (run_dir / "seed-1" / "run.json").stat().st_mtime_ns == stamp
     assert json.loads((run_dir / "seeds.json").read_text())["held_out"] == result["held_out"]
+    # a larger --timesteps extends the finished study: every seed resumes from its newest checkpoint
+    longer = [("768" if a == "512" else a) for a in argv]
+    assert main(longer) == 0
+    assert "3 to train" in capsys.readouterr().out
+    extended = json.loads((run_dir / "seeds.json").read_text())
+    for s in ("0", "1", "2"):
+        assert extended["curves"][s]["timesteps"] == [0, 256, 512, 768]  # the untrained start evaluated once
+        record = json.loads((run_dir / f"seed-{s}" / "run.json").read_text())
+        assert record["timesteps"] == 768 and [i["start_timesteps"] for i in record["invocations"]] == [0, 512]
 
 
 def test_seed_study_rejects_bad_counts(tmp_path):

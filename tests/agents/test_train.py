@@ -355,6 +355,7 @@ def test_smoke_train_resume_export(tmp_path):
         assert (run_dir / name).is_file(), name
     record = json.loads((run_dir / "run.json").read_text())
     assert record["timesteps"] == 2048 and record["seed"] == 0 and record["seeds"]["eval_env"] == 10_000
+    assert record["best_eval"]["timesteps"] > 0  # the untrained start is evaluated but never the exported model
     assert record["action"] == "setpoint"
     assert load_train_config(run_dir / "config.yaml") == record["hyperparameters"]  # the run's config, two files
     evals = np.load(run_dir / "evaluations.npz")
