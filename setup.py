@@ -21,6 +21,8 @@ class BuildPyWithConfigs(build_py):
             return
         root = Path(__file__).resolve().parent / "configs"
         dest = Path(self.build_lib) / "agents" / "configs"
+        if not any(root.glob(SHIPPED[0])):  # an sdist without configs/ (MANIFEST.in grafts it) would ship none
+            raise RuntimeError(f"no train configs in {root}: the wheel would ship no configs")
         for pattern in SHIPPED:
             for src in sorted(root.glob(pattern)):
                 target = dest / src.relative_to(root)

@@ -17,10 +17,11 @@ MODELS_DIR = AGENTS_DIR / "models"
 CONFIG_DIRS = (AGENTS_DIR / "configs", AGENTS_DIR.parent / "configs")
 """Where named configs are looked up: the wheel's copy, then a source checkout's ``configs/``."""
 
-__all__ = ["config_names", "resolve_config", "model_names", "resolve_model", "MODELS_DIR"]
+__all__ = ["is_name", "config_names", "resolve_config", "model_names", "resolve_model", "MODELS_DIR"]
 
 
-def _is_name(value: str | os.PathLike) -> bool:
+def is_name(value: str | os.PathLike) -> bool:
+    """Whether ``value`` reads as a bare name (no folder, no suffix): ``ppo``, not ``ppo.yaml`` or ``x/ppo``."""
     text = os.fspath(value)
     return bool(text) and os.sep not in text and "/" not in text and not Path(text).suffix
 
@@ -47,7 +48,7 @@ def resolve_config(value: str | os.PathLike | None, kind: str) -> str | Path | N
     path = Path(value)
     if path.is_file():
         return value
-    if _is_name(value):
+    if is_name(value):
         for root in CONFIG_DIRS:
             cand = root / kind / f"{os.fspath(value)}.yaml"
             if cand.is_file():
@@ -64,7 +65,7 @@ def model_names() -> list[str]:
 
 def resolve_model(name: str) -> Path | None:
     """The shipped model ``agents/models/<name>.zip`` for a bare name, else ``None``."""
-    if not _is_name(name):
+    if not is_name(name):
         return None
     path = MODELS_DIR / f"{name}.zip"
     return path if path.is_file() else None

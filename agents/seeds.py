@@ -42,30 +42,51 @@ def train_seed(hp: dict[str, Any], run_dir: Path, progress: bool, config_path: s
 
     A seed whose ``run.json`` reached ``hp["n_timesteps"]`` is done: its record is returned as it is. One that
     stopped short (interrupted, or a study extended by a larger ``--timesteps``) resumes from its newest checkpoint."""
-    from agents.train import latest_checkpoint, train
+    from agents.train import latest_checkpoint, train, write_record
 
     if _done(run_dir, hp):
-        return json.loads((run_dir / "run.json").read_text())
+        return _record(run_dir)
     record_path = run_dir / "run.json"
     resume = latest_checkpoint(run_dir)
-    if record_path.is_file() and (run_dir / "final_model.zip").is_file():  # a finished run, extended: from its end
-        steps = int(json.loads(record_path.read_text()).get("timesteps", 0))
+    if (old := _record(run_dir)) is not None and (run_dir / "final_model.zip").is_file():  # extended: from its end
+        steps = int(old.get("timesteps", 0))
         if resume is None or steps > int(resume.stem.split("_")[1]):
             resume = run_dir / "final_model.zip"
     record = train(hp, run_dir, resume, progress=progress, config_path=config_path)
     record["command"] = command
-    tmp = record_path.with_name(record_path.name + ".tmp")
-    tmp.write_text(json.dumps(record, indent=1, default=str) + "\n")
-    tmp.replace(record_path)
+    write_record(record_path, record)
     return record
 
 
-def _done(run_dir: Path, hp: dict[str, Any]) -> bool:
-    path = run_dir / "run.json"
-    if not path.is_file():
-        return False
+_FREE = ("n_timesteps", "max_train_minutes", "torch_threads")
+"""Settings a seed's run may change between invocations: how long it trains, and on how many threads."""
+
+
+def _record(run_dir: Path) -> dict[str, Any] | None:
     try:
-        return int(json.loads(path.read_text())["timesteps"]) >= int(hp["n_timesteps"])
+        data = json.loads((run_dir / "run.json").read_text())
+    except (OSError, ValueError):
+        return None
+    return data if isinstance(data, dict) else None
+
+
+def _check_settings(run_dir: Path, hp: dict[str, Any]) -> None:
+    """``SystemExit`` naming the keys where a seed's earlier run was trained with other settings than ``hp``."""
+    record = _record(run_dir)
+    old = (record or {}).get("hyperparameters")
+    if not isinstance(old, dict):
+        return
+    new = json.loads(json.dumps(hp, default=str))
+    changed = sorted(k for k in set(old) | set(new) if k not in _FREE and old.get(k) != new.get(k))
+    if changed:
+        raise SystemExit(f"pneunet-grasp train: {run_dir} was trained with other settings ({', '.join(changed)}); "
+                         "use another --run-dir, or the same settings to resume or extend it")
+
+
+def _done(run_dir: Path, hp: dict[str, Any]) -> bool:
+    record = _record(run_dir)
+    try:
+        return record is not None and int(record["timesteps"]) >= int(hp["n_timesteps"])
     except (ValueError, KeyError, TypeError):
         return False
 
@@ -101,6 +122,7 @@ def score_seeds(hp: dict[str, Any], seed_dirs: dict[int, Path], objects: int) ->
     from agents.evaluate import object_regimes
     from agents.policies import make_policy
     from pneunet_env.config import load_config
+    from pneunet_env.physics.regimes import REGIMES
 
     cfg = load_config(None, **hp["env_kwargs"])
     seeds = episode_seeds(objects, 0, held_out=True)
@@ -108,8 +130,7 @@ def score_seeds(hp: dict[str, Any], seed_dirs: dict[int, Path], objects: int) ->
     regime = object_regimes(ramp.stiffness, ramp.curvature, cfg)
     out: dict[str, Any] = {"objects": int(objects), "object_seeds": f"{int(seeds[0])} + i (demo's held-out objects)",
                            "regime_counts": {name: int((regime == code).sum()) for code, name in
-                                             enumerate(("force-controlled", "position-controlled"))
-                                             if (regime == code).any()},
+                                             enumerate(REGIMES) if code < 2 or (regime == code).any()},
                            "best_ramp": _rates(ramp.success[0], regime), "seeds": {}}
     for seed, folder in seed_dirs.items():
         row = {}
@@ -128,8 +149,8 @@ def score_seeds(hp: dict[str, Any], seed_dirs: dict[int, Path], objects: int) ->
 
 def _spread(values: list[float]) -> dict[str, float]:
     x = np.asarray([v for v in values if v is not None], dtype=float)
-    if not len(x):
-        return {"mean": math.nan, "std": math.nan, "min": math.nan, "max": math.nan, "n": 0}
+    if not len(x):  # no objects in the group (JSON has no NaN)
+        return {"mean": None, "std": None, "min": None, "max": None, "n": 0}
     return {"mean": float(x.mean()), "std": float(x.std(ddof=1)) if len(x) > 1 else 0.0, "min": float(x.min()),
             "max": float(x.max()), "n": int(len(x))}
 
@@ -161,10 +182,11 @@ def plot_seeds(result: dict[str, Any], path: Path) -> Path | None:
         return None
     curves = {s: c for s, c in result["curves"].items() if "success" in c}
     fig, (ax, ax2) = plt.subplots(1, 2, figsize=(10, 3.8), gridspec_kw={"width_ratios": [1.7, 1]})
-    if curves:
-        n = min(len(c["timesteps"]) for c in curves.values())
-        t = np.asarray(next(iter(curves.values()))["timesteps"][:n], dtype=float)
-        ys = np.array([c["success"][:n] for c in curves.values()])
+    common = sorted(set.intersection(*(set(c["timesteps"]) for c in curves.values()))) if curves else []
+    if common:  # the mean and range where every seed was evaluated
+        t = np.asarray(common, dtype=float)
+        ys = np.array([[dict(zip(c["timesteps"], c["success"], strict=True))[x] for x in common]
+                       for c in curves.values()])
         for c in curves.values():
             ax.plot(c["timesteps"], c["success"], lw=0.8, alpha=0.5, color="#2ca02c")
         ax.fill_between(t, ys.min(axis=0), ys.max(axis=0), color="#2ca02c", alpha=0.15, lw=0,
@@ -230,6 +252,8 @@ def run_seeds(args: argparse.Namespace, hp: dict[str, Any], run_dir: Path) -> in
     dirs = {s: _seed_dir(run_dir, s) for s in seeds}
     jobs_list = [({**hp, "seed": s}, dirs[s], not args.no_progress and jobs == 1, str(args.config),
                   _command(args, dirs[s], s)) for s in seeds]
+    for s in seeds:
+        _check_settings(dirs[s], {**hp, "seed": s})
     todo = [s for s in seeds if not _done(dirs[s], {**hp, "seed": s})]
     print(f"training {hp['algo'].upper()} over {n} seeds ({', '.join(map(str, seeds))}; {len(todo)} to train, "
           f"{jobs} at once) for {hp['n_timesteps']} timesteps each -> {run_dir}/seed-<s>")
@@ -254,8 +278,9 @@ def run_seeds(args: argparse.Namespace, hp: dict[str, Any], run_dir: Path) -> in
     result: dict[str, Any] = {
         "algo": hp["algo"], "seeds": seeds,
         "observation": ("pressure and chamber volume" if hp["env_kwargs"].get("observe_volume") else "pressure only"),
-        "n_timesteps": hp["n_timesteps"], "config": str(args.config), "hyperparameters": hp,
-        "timesteps": {str(s): records[s]["timesteps"] for s in seeds},
+        "n_timesteps": hp["n_timesteps"], "config": str(getattr(args, "config_given", args.config)),
+        "hyperparameters": hp, "timesteps": {str(s): records[s]["timesteps"] for s in seeds},
+        "finished": {str(s): records[s]["timesteps"] >= hp["n_timesteps"] for s in seeds},
         "wall_s": {str(s): records[s]["total_wall_s"] for s in seeds},
         "curves": {str(s): _curve(dirs[s]) for s in seeds if (dirs[s] / "evaluations.npz").is_file()},
         "eval_best_ramp": {str(s): records[s].get("best_ramp_eval_success_rate") for s in seeds},
@@ -273,10 +298,18 @@ def run_seeds(args: argparse.Namespace, hp: dict[str, Any], run_dir: Path) -> in
         cells = []
         for g in groups:
             st = result["summary"][key][g]
-            cells.append(f"{_pct(st['mean'])} ± {100 * st['std']:.1f} [{_pct(st['min'])}, {_pct(st['max'])}]")
+            cells.append("-" if st["n"] == 0 else
+                         f"{_pct(st['mean'])} ± {100 * st['std']:.1f} [{_pct(st['min'])}, {_pct(st['max'])}]")
         print(f"{key + (' (step 0)' if key == 'untrained' else ''):>22}" + "".join(f"  {c:>30}" for c in cells))
     print(f"{'best-ramp':>22}" + "".join(f"  {_pct(held_out['best_ramp'][g]):>30}" for g in groups))
     print(f"median seed: {result['median_seed']}; wrote {path}" + (f" and {png}" if png else ""))
+    short = [s for s in seeds if not result["finished"][str(s)]]
+    if short:
+        print(f"seed(s) {', '.join(map(str, short))} stopped short of {hp['n_timesteps']} timesteps (the time budget, "
+              "max_train_minutes): the scores above compare unequal runs; run the same command again to go on")
+        if args.export is not None:
+            print("not exporting until every seed has reached n_timesteps")
+            return 1
     if args.export is not None:
         s = result["median_seed"]
         zip_path = export(dirs[s], args.export, records[s])

@@ -416,11 +416,12 @@ def _callbacks(hp, run_dir: Path, eval_env, seed: int, deadline: float, resuming
                 import numpy as np
 
                 data = np.load(previous)
-                self.evaluations_timesteps = [int(t) for t in data["timesteps"]]
-                self.evaluations_results = [list(r) for r in data["results"]]
-                self.evaluations_length = [list(r) for r in data["ep_lengths"]]
+                keep = [i for i, t in enumerate(data["timesteps"]) if t <= self.model.num_timesteps]  # a hard kill
+                self.evaluations_timesteps = [int(data["timesteps"][i]) for i in keep]  # evaluated past the model
+                self.evaluations_results = [list(data["results"][i]) for i in keep]
+                self.evaluations_length = [list(data["ep_lengths"][i]) for i in keep]
                 if "successes" in data:
-                    self.evaluations_successes = [list(r) for r in data["successes"]]
+                    self.evaluations_successes = [list(data["successes"][i]) for i in keep]
                 pairs = zip(self.evaluations_timesteps, self.evaluations_results, strict=True)
                 trained = [r for t, r in pairs if t > 0]
                 if trained:  # step 0, the untrained start, is never the best model
@@ -565,7 +566,7 @@ def train(hp: dict[str, Any], run_dir: Path, resume: Path | None = None, progres
     (run_dir / "config.project.yaml").write_text(yaml.safe_dump({ENV_ID: {k: hp[k] for k in PROJECT_KEYS}},
                                                                 sort_keys=False))
     record_path = run_dir / "run.json"
-    record = json.loads(record_path.read_text()) if (resume is not None and record_path.is_file()) else {}
+    record = _read_record(record_path) if resume is not None else {}
     record.setdefault("invocations", [])
     record.update(algo=hp["algo"], env_id=ENV_ID, seed=seed, seeds={"train_envs": f"{seed} + i",
                   "eval_env": seed + 10_000, "torch_numpy_random": seed}, config_path=config_path,
@@ -596,11 +597,30 @@ def train(hp: dict[str, Any], run_dir: Path, resume: Path | None = None, progres
     record.update(timesteps=int(model.num_timesteps), best_eval=best,
                   best_ramp_eval_success_rate=ref,
                   total_wall_s=round(sum(i["wall_s"] for i in record["invocations"]), 1))
-    record_path.write_text(json.dumps(record, indent=1, default=str) + "\n")
+    write_record(record_path, record)
     venv.close()
     eval_env.close()
     plot_training(run_dir, reference=ref, reference_label="best-ramp on the same objects")
     return record
+
+
+def _read_record(path: Path) -> dict[str, Any]:
+    """A run's ``run.json``, or ``{}`` (with a warning) where it is missing or unreadable (a cut write)."""
+    if not path.is_file():
+        return {}
+    try:
+        data = json.loads(path.read_text())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as exc:
+        warnings.warn(f"{path}: unreadable ({exc}); starting a new record", stacklevel=2)
+        return {}
+    return data if isinstance(data, dict) else {}
+
+
+def write_record(path: Path, record: dict[str, Any]) -> None:
+    """Write ``run.json`` whole or not at all: a temporary file in the same folder, then renamed over it."""
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(json.dumps(record, indent=1, default=str) + "\n")
+    os.replace(tmp, path)
 
 
 def reference_success(hp: dict[str, Any], seed: int, spec: str = "best-ramp") -> float | None:
@@ -838,7 +858,7 @@ def run(args: argparse.Namespace) -> int:
           + (f"; resuming from {resume}" if resume else ""))
     record = train(hp, run_dir, resume, progress=not args.no_progress, config_path=str(args.config))
     record["command"] = _command(args, run_dir)
-    (run_dir / "run.json").write_text(json.dumps(record, indent=1, default=str) + "\n")
+    write_record(run_dir / "run.json", record)
     inv = record["invocations"][-1]
     print(f"{inv['end_timesteps']} timesteps ({inv['end_timesteps'] - inv['start_timesteps']} this run) in "
           f"{inv['wall_s']:.0f} s; best evaluation: {record['best_eval']}")

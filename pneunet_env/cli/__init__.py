@@ -142,14 +142,16 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog=f"{PROG} {name}", description=help_)
     module.add_arguments(parser)
     args = parser.parse_args(args_in)
-    if isinstance(getattr(args, "config", None), str):  # a shipped config by name: --config ppo, designed-kitchen
-        from agents.resources import resolve_config
+    config = getattr(args, "config", None)
+    if isinstance(config, str) and not os.path.isfile(config):  # a shipped config by name: ppo, designed-kitchen
+        from agents.resources import is_name, resolve_config
 
-        try:
-            args.config_given = args.config
-            args.config = str(resolve_config(args.config, "train" if name == "train" else "env"))
-        except ValueError as exc:
-            parser.error(str(exc))
+        if is_name(config):
+            try:
+                args.config_given = config
+                args.config = str(resolve_config(config, "train" if name == "train" else "env"))
+            except ValueError as exc:
+                raise SystemExit(f"{PROG} {name}: {exc}") from None
     try:
         return int(module.run(args) or 0)
     except BrokenPipeError:

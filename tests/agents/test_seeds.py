@@ -4,7 +4,6 @@
 from __future__ import annotations
 
 import json
-import math
 from pathlib import Path
 
 import numpy as np
@@ -36,8 +35,8 @@ def test_summary_is_mean_sample_std_min_max_over_seeds():
     assert st["mean"] == pytest.approx(0.6) and st["std"] == pytest.approx(0.3) and (st["min"], st["max"]) == (
         0.3, 0.9) and st["n"] == 3
     assert out["untrained"]["force-controlled"]["std"] == 0.0
-    assert math.isnan(summarise({"seeds": {"0": {"trained": {"all": None}, "untrained": None}}})["trained"]["all"][
-        "mean"])
+    empty = summarise({"seeds": {"0": {"trained": {"all": None}, "untrained": None}}})["trained"]["all"]
+    assert empty["mean"] is None and empty["n"] == 0  # no objects in a group: None, not NaN (JSON has none)
 
 
 def test_shipped_configs_and_models_are_found_by_name(tmp_path, monkeypatch):
@@ -128,5 +127,24 @@ def test_the_command_line_takes_shipped_env_configs_by_name(tmp_path, monkeypatc
     monkeypatch.chdir(tmp_path)
     with pytest.raises(SystemExit) as err:
         main(["demo", "--config", "designed-kitchn"])
-    assert err.value.code == 2 and "designed-kitchen" in capsys.readouterr().err  # the shipped names are listed
+    message = str(err.value.code)  # one line naming the value, the shipped names listed
+    assert message.startswith("pneunet-grasp demo: --config 'designed-kitchn'") and "designed-kitchen" in message
     assert main(["solve", "--stiffness", "1e-3"]) == 0  # a command without --config is untouched
+
+
+def test_a_seed_run_is_resumed_only_with_its_own_settings(tmp_path):
+    from agents.seeds import _check_settings, _done
+
+    hp = {"seed": 0, "n_timesteps": 1000, "max_train_minutes": 10.0, "torch_threads": 1, "n_envs": 16,
+          "env_kwargs": {"observe_volume": True}}
+    run = tmp_path / "seed-0"
+    run.mkdir()
+    assert not _done(run, hp)
+    (run / "run.json").write_text('{"timesteps": 10')  # a cut write: not done, and no crash
+    assert not _done(run, hp)
+    _check_settings(run, hp)
+    (run / "run.json").write_text(json.dumps({"timesteps": 1000, "hyperparameters": {**hp, "n_timesteps": 500}}))
+    assert _done(run, hp) and not _done(run, {**hp, "n_timesteps": 2000})  # a larger budget extends it
+    _check_settings(run, {**hp, "n_timesteps": 2000, "max_train_minutes": 60.0, "torch_threads": 2})
+    with pytest.raises(SystemExit, match=r"other settings \(env_kwargs, n_envs\)"):
+        _check_settings(run, {**hp, "n_envs": 8, "env_kwargs": {}})
