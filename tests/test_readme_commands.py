@@ -66,6 +66,7 @@ SMOKE: dict[str, tuple[str, ...]] = {
     "bench speed": ("--quick",),
     "bench solvers": ("--quick",),
     "bench render": ("--frames", "5", "--repeats", "1"),
+    "bench train": ("--steps", "512", "--threads", "1"),
     "bench design": ("--no-old", "--objects", "8", "--repeats", "1"),
 }
 """Per subcommand: flags appended after the README's own to make the run small."""

@@ -30,6 +30,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "bench design": ("agents.bench_design", "what a design study costs: one design evaluation, and the batched "
                      "search against the episode loop"),
     "bench render": ("pneunet_env.bench.render_speed", "rgb_array frames/s (step + render) against CartPole"),
+    "bench train": ("agents.bench_train", "PPO training steps/s on the env (the shipped config) against the same PPO "
+                    "on CartPole"),
     "evaluate": ("agents.evaluate", "evaluate policies over a stiffness grid (table, JSON, PNGs)"),
     "train": ("agents.train", "train an SB3 agent from a YAML config"),
     "train-skrl": ("agents.train_skrl", "train skrl's PPO on the torch backend, on its device (extra: skrl)"),
