@@ -572,7 +572,8 @@ class PneuNetGraspVectorEnv(VectorEnv):
             root = int(np.random.SeedSequence().generate_state(2, np.uint64)[0] >> np.uint64(1))
             seed = root
         if isinstance(seed, (int, np.integer)) and not isinstance(seed, (bool, np.bool_)):
-            self._streams.seed(np.arange(n), _seed_words(seed, n))
+            # sub-env i is seeded seed + i, and only the sub-envs being reset (as SyncVectorEnv's reset_mask does)
+            self._streams.seed(idx, _seed_words(seed, n)[:, idx])
             super().reset(seed=int(seed))  # Gymnasium's vector-level np_random (not used by this env)
         else:
             try:
@@ -584,7 +585,7 @@ class PneuNetGraspVectorEnv(VectorEnv):
             given = np.array([s is not None for s in seeds], dtype=bool)
             if not self._seeded and not given.all():
                 raise ValueError("the first seeding must give a seed for every sub-env (no None)")
-            sel = np.flatnonzero(given)
+            sel = np.intersect1d(np.flatnonzero(given), idx)  # a seed for a sub-env not being reset is unused
             if sel.size:
                 self._streams.seed(sel, _seed_words([seeds[i] for i in sel], sel.size))
         self._seeded = True

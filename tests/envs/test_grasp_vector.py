@@ -476,3 +476,28 @@ def test_a_cpu_tensor_action_steps_the_numpy_backends():
         assert isinstance(obs, np.ndarray) and np.array_equal(obs, ref.step(np.full((4, 1), 0.5))[0])
         with pytest.raises(ValueError, match=r"actions\[2\]"):
             env.step(torch.tensor([[0.1], [0.2], [float("nan")], [0.0]]))
+
+
+def test_seeded_partial_resets_reseed_only_the_envs_they_reset_as_sync_vector_env_does():
+    """``reset(seed=s, options={"reset_mask": m})`` seeds sub-env i with s + i only where m is true; the others keep
+    their streams, so their next objects are SyncVectorEnv's (a regression: every stream used to be re-seeded)."""
+    from gymnasium.vector import SyncVectorEnv
+
+    n = 4
+    ours = gym.make_vec("PneuNetGrasp-v0", num_envs=n)
+    sync = SyncVectorEnv([lambda: gym.make("PneuNetGrasp-v0") for _ in range(n)])
+
+    def stiffness(info, mask):
+        return np.where(mask, np.asarray(info["object_stiffness"], float), np.nan)
+
+    try:
+        for seed, mask in ((0, None), (7, [True, False, False, False]), (None, [False, True, True, False]),
+                           ([11, 12, 13, 14], [False, False, True, True]), (None, [True, True, True, True])):
+            options = None if mask is None else {"reset_mask": np.array(mask)}
+            m = np.ones(n, bool) if mask is None else np.array(mask)
+            _, a = ours.reset(seed=seed, options=options)
+            _, b = sync.reset(seed=seed, options=None if options is None else dict(options))
+            np.testing.assert_array_equal(stiffness(a, m), stiffness(b, m), err_msg=f"seed={seed}, mask={mask}")
+    finally:
+        ours.close()
+        sync.close()
