@@ -94,7 +94,9 @@ def run(args: argparse.Namespace) -> int:
     print(f"  CartPole-v1, the same PPO (no gSDE), 1 torch thread:       {cp['steps_per_s']:8.0f} steps/s "
           f"({cp['wall_s']:.1f} s)")
     if args.json is not None:
+        from agents.policies import atomic_write_bytes
+
         args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps(res, indent=1) + "\n")
+        atomic_write_bytes(args.json, (json.dumps(res, indent=1) + "\n").encode())
         print(f"wrote {args.json}")
     return 0

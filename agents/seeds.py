@@ -239,6 +239,7 @@ def _pct(x: float | None) -> str:
 
 def run_seeds(args: argparse.Namespace, hp: dict[str, Any], run_dir: Path) -> int:
     """The ``--seeds`` form of ``pneunet-grasp train`` (see the module's docstring)."""
+    from agents.policies import atomic_write_bytes
     from agents.train import export
 
     n, jobs, objects = args.seeds, args.jobs, args.objects
@@ -286,10 +287,7 @@ def run_seeds(args: argparse.Namespace, hp: dict[str, Any], run_dir: Path) -> in
         "eval_best_ramp": {str(s): records[s].get("best_ramp_eval_success_rate") for s in seeds},
         "held_out": held_out, "summary": summarise(held_out), "median_seed": median_seed(held_out),
     }
-    path = run_dir / "seeds.json"
-    tmp = path.with_name("seeds.json.tmp")
-    tmp.write_text(json.dumps(result, indent=1, default=str) + "\n")
-    tmp.replace(path)
+    path = atomic_write_bytes(run_dir / "seeds.json", (json.dumps(result, indent=1, default=str) + "\n").encode())
     png = plot_seeds(result, run_dir / "learning_curves.png")
     groups = list(result["summary"]["trained"])
     print(f"\nheld-out success over {n} seeds ({objects} objects; mean ± std [min, max]):")
@@ -319,8 +317,6 @@ def run_seeds(args: argparse.Namespace, hp: dict[str, Any], run_dir: Path) -> in
             "chosen": f"the median of {n} seeds by held-out success (all {objects} objects)", "seed": s,
             "held_out": held_out["seeds"][str(s)], "every_seed": held_out["seeds"], "best_ramp": held_out["best_ramp"],
             "summary": result["summary"], "study": str(path)}
-        tmp = meta_path.with_name(meta_path.name + ".tmp")
-        tmp.write_text(json.dumps(meta, indent=1, default=str) + "\n")
-        tmp.replace(meta_path)
+        atomic_write_bytes(meta_path, (json.dumps(meta, indent=1, default=str) + "\n").encode())
         print(f"exported seed {s}'s best evaluation's model (the median seed) to {zip_path}")
     return 0

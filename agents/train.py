@@ -67,7 +67,13 @@ import warnings
 from pathlib import Path
 from typing import Any
 
-from agents.policies import STATS_SUFFIX, NormalizationStats, load_pickled_vecnormalize, stage_file
+from agents.policies import (
+    STATS_SUFFIX,
+    NormalizationStats,
+    atomic_write_bytes,
+    load_pickled_vecnormalize,
+    stage_file,
+)
 
 ENV_ID = "PneuNetGrasp-v0"
 ALGOS = ("ppo", "sac", "td3", "a2c")
@@ -618,9 +624,7 @@ def _read_record(path: Path) -> dict[str, Any]:
 
 def write_record(path: Path, record: dict[str, Any]) -> None:
     """Write ``run.json`` whole or not at all: a temporary file in the same folder, then renamed over it."""
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(record, indent=1, default=str) + "\n")
-    os.replace(tmp, path)
+    atomic_write_bytes(path, (json.dumps(record, indent=1, default=str) + "\n").encode())
 
 
 def reference_success(hp: dict[str, Any], seed: int, spec: str = "best-ramp") -> float | None:
