@@ -78,7 +78,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from pneunet_env.cli import require_extra
+    from pneunet_env.extras import require_extra
 
     require_extra("bench train", "stable_baselines3", "rl", "PPO")
     if args.steps < 1 or any(n < 1 for n in args.threads):

@@ -53,9 +53,9 @@ from typing import Any
 
 import numpy as np
 
-from pneunet_env.cli.progress import add_progress_argument
-from pneunet_env.cli.progress import progress as progress_bar
 from pneunet_env.config import EnvConfig, ObjectConfig, load_config
+from pneunet_env.progress import add_progress_argument
+from pneunet_env.progress import progress as progress_bar
 
 __all__ = ["run_episode", "stiffness_grid", "stiffness_bins", "catalogue_stiffness_range", "draw_bins",
            "evaluate_policies", "evaluate_distribution", "decade_table",
@@ -852,7 +852,7 @@ PROG = "pneunet-grasp evaluate"
 
 def run(args: argparse.Namespace) -> int:
     from agents.policies import make_policy
-    from pneunet_env.cli import require_extra
+    from pneunet_env.extras import require_extra
 
     if args.objects < 0:
         usage_error(PROG, f"--objects must be >= 0, got {args.objects}")

@@ -55,9 +55,9 @@ from typing import Any
 
 import numpy as np
 
-from pneunet_env.cli.progress import add_progress_argument
-from pneunet_env.cli.progress import progress as progress_bar
 from pneunet_env.config import EnvConfig, load_config
+from pneunet_env.progress import add_progress_argument
+from pneunet_env.progress import progress as progress_bar
 
 __all__ = ["ROLES", "map_config", "task_config", "object_options", "make_entries",
            "default_jaw_nominal_mm", "jaw_config", "blocked_fraction_grid", "success_map", "summarize", "plot_map",
@@ -645,7 +645,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     from agents.evaluate import parse_overrides, usage_error
-    from pneunet_env.cli import require_extra
+    from pneunet_env.extras import require_extra
 
     if args.density_radius is not None and len(args.density) < 2:
         usage_error("pneunet-grasp map", "--density-radius places the density row, which needs two or more --density "

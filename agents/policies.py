@@ -37,7 +37,6 @@ from __future__ import annotations
 import json
 import os
 import pickle
-import tempfile
 import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -48,6 +47,7 @@ import numpy as np
 
 from agents.scripted import LinearRamp, StepPolicy, load_ramp
 from pneunet_env.config import EnvConfig
+from pneunet_env.files import atomic_write_bytes, stage_file  # noqa: F401  (re-exported: the one atomic writer)
 from pneunet_env.wrappers import setpoint_to_rate
 
 __all__ = ["PolicyEntry", "REGISTRY", "make_policy", "parse_spec", "SB3Policy", "BEST_RAMP_PATH", "BEST_RIGID_PATH",
@@ -333,50 +333,6 @@ ACTION_MODES = ("rate", "setpoint")
 
 
 STATS_FORMAT = "pneunet_env/vecnormalize-stats/1"
-
-
-def stage_file(final: str | Path, content: bytes | Path) -> Path:
-    """A temporary file beside ``final`` (same folder, so ``os.replace`` onto ``final`` is atomic) holding
-    ``content`` (bytes, or the bytes of the file at that path), flushed to disk, with ``final``'s permissions (a new
-    file's usual ones if ``final`` does not exist). The caller renames it into place or deletes it."""
-    final = Path(final)
-    final.parent.mkdir(parents=True, exist_ok=True)
-    fd, name = tempfile.mkstemp(dir=final.parent, prefix=f".{final.name}.", suffix=".tmp")
-    tmp = Path(name)
-    try:
-        with os.fdopen(fd, "wb") as out:
-            if isinstance(content, Path):
-                with open(content, "rb") as src:
-                    while chunk := src.read(1 << 20):
-                        out.write(chunk)
-            else:
-                out.write(content)
-            out.flush()
-            os.fsync(out.fileno())
-        os.chmod(tmp, final.stat().st_mode & 0o7777 if final.exists() else 0o666 & ~_umask())
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-    return tmp
-
-
-def _umask() -> int:
-    mask = os.umask(0o022)
-    os.umask(mask)
-    return mask
-
-
-def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
-    """Write ``data`` to ``path`` through a temporary file in the same folder and ``os.replace``: a reader (or a
-    failure half-way) sees the old file or the new one, never a truncated one."""
-    path = Path(path)
-    tmp = stage_file(path, data)
-    try:
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-    return path
 
 
 @dataclass

@@ -50,9 +50,9 @@ from agents.evaluate import (
 )
 from agents.scripted import LinearRamp, save_ramp
 from pneunet_env import PAPER_TASK
-from pneunet_env.cli.progress import add_progress_argument
-from pneunet_env.cli.progress import progress as progress_bar
 from pneunet_env.config import EnvConfig, load_config
+from pneunet_env.progress import add_progress_argument
+from pneunet_env.progress import progress as progress_bar
 
 __all__ = ["Candidate", "object_seeds", "score", "grid_search", "search_ramp", "SENSITIVITY_SETTINGS",
            "strain_crush_fraction", "sensitivity_study", "add_arguments", "run", "main"]
@@ -486,7 +486,7 @@ def _given_search_options(args: argparse.Namespace) -> list[str]:
 
 def run(args: argparse.Namespace) -> int:
     from agents.policies import tuned_path
-    from pneunet_env.cli import require_extra
+    from pneunet_env.extras import require_extra
 
     if args.sensitivity:
         given = _given_search_options(args)

@@ -83,6 +83,17 @@ def test_only_the_cli_reaches_into_agents():
         assert not uses_agents, (mod, uses_agents)
 
 
+def test_agents_bench_and_paper_do_not_import_the_cli():
+    """The CLI sits on top: ``agents``, ``pneunet_env.bench`` and ``pneunet_env.paper`` take progress bars, the
+    extras check and the atomic writer from below it (``pneunet_env.progress``, ``.extras``, ``.files``)."""
+    files = [*ROOT.parent.joinpath("agents").rglob("*.py"), *ROOT.joinpath("bench").rglob("*.py"),
+             *ROOT.joinpath("paper").rglob("*.py")]
+    assert len(files) > 20
+    for p in files:
+        bad = {d for d in _imports(p) if d == "pneunet_env.cli" or d.startswith("pneunet_env.cli.")}
+        assert not bad, (p, bad)
+
+
 def test_the_library_does_not_depend_on_paper_or_bench():
     for mod, deps in GRAPH.items():
         if mod.startswith(("pneunet_env.paper", "pneunet_env.bench", "pneunet_env.cli")):

@@ -63,7 +63,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--report", action="store_true", help="only report on the study as it stands")
     parser.add_argument("--checks", action="store_true",
                         help="instead of a study: measure the design findings (agents.design.checks) and print them")
-    from pneunet_env.cli.progress import add_progress_argument
+    from pneunet_env.progress import add_progress_argument
 
     add_progress_argument(parser, "--quiet")
 

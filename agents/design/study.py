@@ -190,7 +190,7 @@ def work(spec: StudySpec, parallel: bool | None = None, progress: bool | None = 
     process ran. Any number of processes, here or on other machines, may do this on one study at once."""
     optuna = _optuna()
     from agents.batch import episode_seeds
-    from pneunet_env.cli.progress import progress as progress_bar
+    from pneunet_env.progress import progress as progress_bar
 
     study = open_study(spec)
     seeds = episode_seeds(spec.objects, spec.seed)

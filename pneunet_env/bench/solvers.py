@@ -41,13 +41,13 @@ from pathlib import Path
 import numpy as np
 
 from pneunet_env.bench.models import AUTO_TOLERANCE, equilibrium_for_model
-from pneunet_env.cli.progress import add_progress_argument
-from pneunet_env.cli.progress import progress as progress_bar
 from pneunet_env.physics import mechanics
 from pneunet_env.physics._jit import HAVE_NUMBA
 from pneunet_env.physics.linear import LinearModel, linear_reach, linear_state
 from pneunet_env.physics.params import ActuatorParams
 from pneunet_env.physics.solver import Equilibrium, minimise_state, solve_equilibrium
+from pneunet_env.progress import add_progress_argument
+from pneunet_env.progress import progress as progress_bar
 
 __all__ = [
     "CORRECT_TOL",

@@ -40,8 +40,8 @@ from typing import Any
 
 import numpy as np
 
-from pneunet_env.cli.progress import add_progress_argument
-from pneunet_env.cli.progress import progress as progress_bar
+from pneunet_env.progress import add_progress_argument
+from pneunet_env.progress import progress as progress_bar
 
 __all__ = ["add_arguments", "run", "run_benchmark", "format_table", "plot", "NUM_ENVS", "TARGETS"]
 

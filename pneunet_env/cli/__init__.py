@@ -15,9 +15,9 @@ import importlib
 import os
 import sys
 
-__all__ = ["COMMANDS", "GROUPS", "main", "require_extra"]
+from pneunet_env.extras import PROG, require_extra
 
-PROG = "pneunet-grasp"
+__all__ = ["COMMANDS", "GROUPS", "main", "require_extra"]
 
 # name -> (module, one-line help)
 COMMANDS: dict[str, tuple[str, str]] = {
@@ -160,26 +160,6 @@ def main(argv: list[str] | None = None) -> int:
         if not _stdout_closed():
             raise  # some other pipe: a real error
         return 141  # the reader of stdout went away (``| head``): stop quietly, 128 + SIGPIPE, as a Unix command does
-
-
-def require_extra(command: str, module: str, extra: str, what: str = "", skip: str | None = None) -> None:
-    """Exit now (status 2, one line on stderr) unless ``module`` imports: a command checks the optional packages it
-    will need before it does its work, not after. The line names the extra that installs ``module``.
-
-    Args:
-        command: the command, as the user typed it after ``pneunet-grasp`` (``"evaluate"``).
-        module: the module to import (``"matplotlib"``).
-        extra: the package extra that provides it (``"plot"``).
-        what: what needs it (``"the plots"``); default: ``"this command"``.
-        skip: an option that does without it (``"--no-plots"``), named in the message.
-    """
-    try:
-        importlib.import_module(module)
-    except ImportError:
-        hint = f", or pass {skip} to do without" if skip else ""
-        print(f"{PROG} {command}: {module} is not installed and is needed for {what or 'this command'}: "
-              f"pip install -e \".[{extra}]\" (or pip install \"pneunet-env[{extra}]\"){hint}", file=sys.stderr)
-        raise SystemExit(2) from None
 
 
 def _stdout_closed() -> bool:

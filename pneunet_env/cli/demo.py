@@ -39,7 +39,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pneunet_env.cli.progress import add_progress_argument, progress
+from pneunet_env.progress import add_progress_argument, progress
 
 DEFAULT_POLICIES = ("best-ramp", "oracle", "rigid")
 DEFAULT_OBJECTS = 100

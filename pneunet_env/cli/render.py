@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from pneunet_env.cli.progress import add_progress_argument, progress
+from pneunet_env.progress import add_progress_argument, progress
 
 DEFAULT_STIFFNESS = (1e-5, 1e-4, 1e-2)
 """The default episodes' ``k~``: soft, through the paper ring's fold, stiff."""

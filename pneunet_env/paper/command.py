@@ -11,9 +11,9 @@ import argparse
 import sys
 from pathlib import Path
 
-from pneunet_env.cli.progress import add_progress_argument, progress_enabled
 from pneunet_env.paper import checks as paper_checks
 from pneunet_env.paper.figures import FIGURES, generate, load_tables
+from pneunet_env.progress import add_progress_argument, progress_enabled
 
 __all__ = ["add_arguments", "run"]
 

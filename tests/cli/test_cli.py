@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from pneunet_env.cli import COMMANDS, GROUPS, main
-from pneunet_env.cli.progress import NoBar, add_progress_argument, progress, progress_enabled
+from pneunet_env.progress import NoBar, add_progress_argument, progress, progress_enabled
 
 ROOT = Path(__file__).resolve().parents[2]
 LONG_COMMANDS = ("render", "evaluate", "search", "figures", "bench speed", "bench solvers", "demo")
@@ -196,7 +196,7 @@ def test_the_library_below_the_cli_draws_no_bars():
 def test_tqdm_is_imported_only_by_the_helper():
     # pneunet_env/paper/figures.py still draws its own bar (generate(show_progress=...)); the figures command
     # turns it on only where the helper would (progress_enabled).
-    allowed = {ROOT / "pneunet_env/cli/progress.py", ROOT / "pneunet_env/paper/figures.py"}
+    allowed = {ROOT / "pneunet_env/progress.py", ROOT / "pneunet_env/paper/figures.py"}
     for path in [*ROOT.joinpath("pneunet_env").rglob("*.py"), *ROOT.joinpath("agents").rglob("*.py")]:
         if path not in allowed:
             assert not any(m.split(".")[0] == "tqdm" for m in _imported_modules(path)), path

@@ -1,0 +1,98 @@
+"""Writing files so that nothing is ever half-written: the one atomic writer of the package.
+
+Every file a command writes (a JSON record, a checkpoint, an exported model, an NPZ, a PNG) goes to a temporary
+file in the same folder, is flushed to disk, and is then renamed onto its name (``os.replace``, atomic on POSIX and
+Windows). A reader, an interrupted run or a crash half-way sees the old file or the new one, never a truncated one.
+A temporary file left by a hard kill (``.NAME.*.tmp``) is never read by the package.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from pathlib import Path
+from typing import Any
+
+__all__ = ["atomic_write_bytes", "atomic_write_json", "atomic_write_text", "save_figure", "stage_file"]
+
+
+def _umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
+def stage_file(final: str | Path, content: bytes | Path, suffix: str = ".tmp") -> Path:
+    """A temporary file beside ``final`` (same folder, so ``os.replace`` onto ``final`` is atomic) holding
+    ``content`` (bytes, or the bytes of the file at that path), flushed to disk, with ``final``'s permissions (a new
+    file's usual ones if ``final`` does not exist). The caller renames it into place or deletes it."""
+    final = Path(final)
+    final.parent.mkdir(parents=True, exist_ok=True)
+    fd, name = tempfile.mkstemp(dir=final.parent, prefix=f".{final.name}.", suffix=suffix)
+    tmp = Path(name)
+    try:
+        with os.fdopen(fd, "wb") as out:
+            if isinstance(content, Path):
+                with open(content, "rb") as src:
+                    while chunk := src.read(1 << 20):
+                        out.write(chunk)
+            else:
+                out.write(content)
+            out.flush()
+            os.fsync(out.fileno())
+        os.chmod(tmp, final.stat().st_mode & 0o7777 if final.exists() else 0o666 & ~_umask())
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    return tmp
+
+
+def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
+    """Write ``data`` to ``path`` through a temporary file in the same folder and ``os.replace``: a reader (or a
+    failure half-way) sees the old file or the new one, never a truncated one."""
+    path = Path(path)
+    tmp = stage_file(path, data)
+    try:
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    return path
+
+
+def atomic_write_text(path: str | Path, text: str) -> Path:
+    """:func:`atomic_write_bytes` of ``text`` in UTF-8."""
+    return atomic_write_bytes(path, text.encode("utf-8"))
+
+
+def atomic_write_json(path: str | Path, data: Any, *, indent: int | None = 1, default=None) -> Path:
+    """``data`` as JSON (one trailing newline), written atomically. ``default`` is :func:`json.dumps`'."""
+    return atomic_write_text(path, json.dumps(data, indent=indent, default=default) + "\n")
+
+
+def save_figure(fig: Any, path: str | Path, *, dpi: int = 120, close: bool = True, **kwargs: Any) -> Path:
+    """Save a matplotlib figure to ``path`` atomically (rendered into a temporary file of the same format in the
+    same folder, then renamed), and close it unless ``close=False``. Returns ``path``.
+
+    The one figure-save ending of the package's commands (evaluate, map, search, train, the seed study, the design
+    study, the benchmarks and the paper's figures). matplotlib is imported by the caller, never here.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=".tmp" + (path.suffix or ".png"))
+    os.close(fd)
+    tmp = Path(name)
+    try:
+        fig.savefig(tmp, dpi=dpi, format=(path.suffix.lstrip(".") or "png"), **kwargs)
+        os.chmod(tmp, 0o666 & ~_umask())
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    finally:
+        if close:
+            import matplotlib.pyplot as plt  # the caller made the figure: matplotlib is there
+
+            plt.close(fig)
+    return path
