@@ -14,15 +14,16 @@ Figures, never a pass/fail: machines are noisy. ``--json PATH`` keeps them.
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import platform
 import sys
 import time
-from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from pneunet_env import arguments as checks
+from pneunet_env.files import atomic_write_json
 
 
 def _cartpole_rate(n: int, steps: int = 100, seed: int = 0) -> float:
@@ -120,24 +121,24 @@ def format_table(res: dict[str, Any]) -> str:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--objects", type=int, default=200, help="objects per evaluation and search (default 200)")
-    parser.add_argument("--repeats", type=int, default=3, help="timed design evaluations (default 3)")
+    parser.add_argument("--objects", type=checks.integer(1, 100_000), default=200,
+                        help="objects per evaluation and search (default 200)")
+    parser.add_argument("--repeats", type=checks.integer(1, 1000), default=3,
+                        help="timed design evaluations (default 3)")
     parser.add_argument("--no-old", action="store_true", help="skip the episodic search (minutes)")
-    parser.add_argument("--json", type=Path, default=None, help="also write the figures as JSON")
+    parser.add_argument("--json", type=checks.output_file, default=None,
+                        help="also write the figures as JSON (checked before the benchmark; replaced whole)")
 
 
 def run(args: argparse.Namespace) -> int:
     if args.objects < 1 or args.repeats < 1:
         raise SystemExit("pneunet-grasp bench design: --objects and --repeats must be >= 1")
-    if args.json is not None and args.json.exists() and not args.json.is_file():
-        raise SystemExit(f"pneunet-grasp bench design: --json {str(args.json)!r} is not a file")
+    if args.json is not None:
+        checks.check_output_file(args.json, "--json")
     res = run_benchmark(args.objects, args.repeats, not args.no_old)
     print(format_table(res))
     if args.json is not None:
-        from agents.policies import atomic_write_bytes
-
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        atomic_write_bytes(args.json, (json.dumps(res, indent=1) + "\n").encode())
+        atomic_write_json(args.json, res)
         print(f"wrote {args.json}")
     return 0
 

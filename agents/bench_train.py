@@ -14,12 +14,13 @@ command says how long steps take.
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import platform
 import time
-from pathlib import Path
 from typing import Any
+
+from pneunet_env import arguments as checks
+from pneunet_env.files import atomic_write_json
 
 
 def _rate(model, steps: int) -> tuple[float, float]:
@@ -71,10 +72,13 @@ def bench_train(steps: int = 20_000, threads: tuple[int, ...] = (1, 2), seed: in
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--steps", type=int, default=20_000, help="timesteps timed per run (default 20000)")
-    parser.add_argument("--threads", type=int, nargs="+", default=[1, 2],
+    parser.add_argument("--steps", type=checks.integer(1, 10**9), default=20_000,
+                        help="timesteps timed per run (default 20000)")
+    parser.add_argument("--threads", type=checks.integer(1, 1024), nargs="+", default=[1, 2],
                         help="torch thread counts to time (default 1 2)")
-    parser.add_argument("--json", type=Path, default=None, help="also write the figures to this JSON file")
+    parser.add_argument("--json", type=checks.output_file, default=None,
+                        help="also write the figures to this JSON file (checked before the benchmark; replaced "
+                             "whole)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -94,9 +98,6 @@ def run(args: argparse.Namespace) -> int:
     print(f"  CartPole-v1, the same PPO (no gSDE), 1 torch thread:       {cp['steps_per_s']:8.0f} steps/s "
           f"({cp['wall_s']:.1f} s)")
     if args.json is not None:
-        from agents.policies import atomic_write_bytes
-
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        atomic_write_bytes(args.json, (json.dumps(res, indent=1) + "\n").encode())
+        atomic_write_json(args.json, res)
         print(f"wrote {args.json}")
     return 0

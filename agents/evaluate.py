@@ -53,7 +53,17 @@ from typing import Any
 
 import numpy as np
 
+from agents.plotting import (  # noqa: F401 (their old home)
+    _matplotlib,
+    _style,
+    nearest_drawn,
+    plot_schedules,
+    plot_success,
+    record_schedules,
+)
+from pneunet_env import arguments as checks
 from pneunet_env.config import EnvConfig, ObjectConfig, load_config
+from pneunet_env.files import atomic_write_text
 from pneunet_env.progress import add_progress_argument
 from pneunet_env.progress import progress as progress_bar
 
@@ -454,36 +464,6 @@ def evaluate_distribution(entries, config: EnvConfig, n_objects: int, seed: int 
     return out
 
 
-def record_schedules(entries, config: EnvConfig, stiffnesses, seed: int = 0,
-                     seeds=None) -> list[dict[str, Any]]:
-    """One recorded episode per policy and stiffness: ``{policy, label, command, object_stiffness, ...outcome}``.
-
-    ``seeds`` (one per stiffness): run those objects as the env draws them, nothing pinned (the catalogue's);
-    else each ``k~`` is pinned."""
-    out = []
-    for entry in entries:
-        env = entry.make_env(config)
-        for j, k in enumerate(stiffnesses):
-            if seeds is None:
-                r = run_episode(env, entry.policy, episode_seed(seed, 10_000 + j, 0), {"object_stiffness": float(k)},
-                                record=True)
-            else:
-                r = run_episode(env, entry.policy, int(seeds[j]), record=True)
-            r.update(policy=entry.name, label=entry.label, command=entry.command)
-            out.append(r)
-        env.close()
-    return out
-
-
-def nearest_drawn(config: EnvConfig, stiffnesses, seed: int = 0, draws: int = 4000) -> list[int]:
-    """For each ``k~``, the seed of the object nearest it (in ``log k~``) among ``draws`` drawn by the env."""
-    from agents.batch import draw_objects
-
-    seeds = np.arange(GRID_SEED + seed * 1_000_003, GRID_SEED + seed * 1_000_003 + draws)
-    k = np.log(np.asarray(draw_objects(config, seeds.tolist()).stiffness, dtype=float))
-    return [int(seeds[np.argmin(np.abs(k - math.log(t)))]) for t in stiffnesses]
-
-
 # ---------------------------------------------------------------------------------------------
 # Tables
 # ---------------------------------------------------------------------------------------------
@@ -621,200 +601,22 @@ def _line(label: str, r: dict[str, Any]) -> str:
 
 
 # ---------------------------------------------------------------------------------------------
-# Plots (matplotlib imported here only)
-# ---------------------------------------------------------------------------------------------
-
-# Policies often score the same: the widest lines are drawn first (underneath), so that each stays visible.
-_STYLES = {
-    "rigid": dict(color="#d62728", lw=7.5, alpha=0.35, zorder=2),
-    "best-ramp": dict(color="#1f5fbf", lw=2.4, marker="o", ms=3.5, zorder=5),
-    "oracle": dict(color="black", lw=1.3, ls="--", zorder=6),
-    "ramp": dict(color="#7f7f7f", lw=1.4, ls=":", marker=".", zorder=4),
-    "step": dict(color="#a0a0a0", lw=1.4, ls="-.", marker=".", zorder=4),
-}
-_MODEL_STYLE = dict(color="#2ca02c", lw=4.5, alpha=0.75, zorder=3)
-
-
-def _style(name: str) -> dict:
-    base = name.split(":")[0]
-    if name.endswith(".zip"):
-        return dict(_MODEL_STYLE)
-    return dict(_STYLES.get(base, dict(lw=1.5, marker=".")))
-
-
-def _matplotlib():
-    import matplotlib
-
-    matplotlib.use("Agg", force=False)
-    import matplotlib.pyplot as plt
-
-    return plt
-
-
-def plot_success(rows, path: str | Path, config: EnvConfig, title: str | None = None) -> Path:
-    """Success (top) and damage / slip (bottom) vs ``k~`` for every policy, with the regimes: for objects drawn from
-    the catalogue, each ``k~`` bin shaded by the regime most of its objects are in (read off the mechanics); on a
-    pinned ``k~`` grid, the paper's soft and stiff bins shaded and, under the crush-fraction rule, the stiffness
-    below which no state holds the object and spares it. The title names the task and its damage rule."""
-    import textwrap
-
-    from matplotlib.patches import Patch
-
-    from agents.oracle import feasible_stiffness
-    from pneunet_env.objects import stiffness_per_modulus
-
-    plt = _matplotlib()
-    drawn = not _paper_bins(rows)
-    ks = np.array([k for r in rows for k in r.get("k_range", [r["object_stiffness"]])])
-    lo, hi = (ks.min(), ks.max()) if drawn else (ks.min() / 1.3, ks.max() * 1.3)
-    fig, (ax, ax_d, ax_s) = plt.subplots(3, 1, figsize=(8.6, 7.6), sharex=True,
-                                         gridspec_kw=dict(height_ratios=[2.4, 1, 1]))
-    force_c, position_c = ("#4c9be8", 0.12), ("#f0a030", 0.14)
-    extra_handles, extra_labels = [], []
-    for a in (ax, ax_d, ax_s):
-        a.set_xscale("log")
-        a.set_xlim(lo, hi)
-        a.grid(True, which="major", alpha=0.3)
-    if drawn:
-        first = rows[0]["policy"]
-        for r in (r for r in rows if r["policy"] == first):
-            n = {g: c["episodes"] for g, c in r["by_regime"].items()}
-            c, alpha = force_c if n.get("force-controlled", 0) >= n.get("position-controlled", 0) else position_c
-            for a in (ax, ax_d, ax_s):
-                a.axvspan(*r["k_range"], color=c, alpha=alpha, lw=0)
-        p = config.task.max_pressure_kpa
-        extra_handles = [Patch(color=force_c[0], alpha=2 * force_c[1]), Patch(color=position_c[0],
-                                                                               alpha=2 * position_c[1])]
-        extra_labels = [f"bin of mostly force-controlled objects (at {p:g} kPa, phi < 1/2)",
-                        "bin of mostly position-controlled objects (phi >= 1/2)"]
-    else:
-        for a in (ax, ax_d, ax_s):
-            a.axvspan(lo, SOFT_MAX, color=force_c[0], alpha=force_c[1], lw=0)
-            a.axvspan(STIFF_MIN, hi, color=position_c[0], alpha=position_c[1], lw=0)
-        ax.text(math.sqrt(lo * SOFT_MAX), 1.06, "soft (k~ < 1e-4, the paper's bin)", ha="center", fontsize=8.5,
-                color="#1f5fbf")
-        ax.text(math.sqrt(STIFF_MIN * hi), 1.06, "stiff (k~ >= 1e-3, the paper's bin)", ha="center", fontsize=8.5,
-                color="#b06000")
-        if config.task.damage_rule == "crush_fraction":  # the bound assumes delta > crush_fraction H
-            k_feas = feasible_stiffness(config)
-            for a in (ax, ax_d, ax_s):
-                a.axvline(k_feas, color="#555555", ls=(0, (1, 2)), lw=1.4)
-            ax.text(k_feas / 1.12, 0.55, f"below k~ = {k_feas:.2g} no state\nholds the object and spares it:\n"
-                    "F = k_obj delta >= F_grip would\nneed delta > the crush depth", fontsize=7.5, color="#444444",
-                    va="center", ha="right")
-    for name in dict.fromkeys(r["policy"] for r in rows):
-        rs = sorted((r for r in rows if r["policy"] == name), key=lambda r: r["object_stiffness"])
-        k = [r["object_stiffness"] for r in rs]
-        st = _style(name)
-        ax.plot(k, [r["success_rate"] for r in rs], label=rs[0]["label"], **st)
-        ax_d.plot(k, [r["damage_rate"] for r in rs], **st)
-        ax_s.plot(k, [r["slip_rate"] for r in rs], **st)
-    ax.set_ylim(-0.04, 1.13)
-    ax.set_ylabel("success rate\n(held to the end, intact)")
-    for a, what in ((ax_d, "damaged"), (ax_s, "slipped\n(dropped)")):
-        a.set_ylim(-0.07, 1.07)
-        a.set_ylabel(what)
-    ax_s.set_xlabel("object stiffness k~ = k_obj w / mu" + (" (bin centre; objects drawn by the env)" if drawn
-                                                              else ""))
-    handles, labels = ax.get_legend_handles_labels()
-    ax.legend(handles + extra_handles, labels + extra_labels, loc="lower center",
-              bbox_to_anchor=(0.5, 1.08 if drawn else 1.17), ncol=2, fontsize=8, frameon=False)
-    if not drawn:  # one object size: k~ is a modulus
-        oc = config.objects
-        unit = float(stiffness_per_modulus(np.mean(oc.object_thickness_mm), np.mean(oc.object_curvature_per_m),
-                                           config.scales))
-        top = ax.secondary_xaxis("top", functions=(lambda k: k / unit, lambda m: m * unit))
-        top.set_xlabel("object shear modulus mu_obj (kPa)", fontsize=8)
-        top.tick_params(labelsize=8)
-    if title is None:
-        title = "\n".join(textwrap.wrap(f"{task_description(config)}; {damage_rule_text(config)}; "
-                                         f"{slip_rule_text(config)}", 130))
-    fig.suptitle(title, fontsize=8, y=0.995)
-    fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=130)
-    plt.close(fig)
-    return path
-
-
-def plot_schedules(traces, path: str | Path, config: EnvConfig) -> Path:
-    """One panel per policy: the command applied at each step, one line per object stiffness, outcome marked."""
-    plt = _matplotlib()
-    names = list(dict.fromkeys(t["policy"] for t in traces))
-    ncol = min(3, len(names))
-    nrow = math.ceil(len(names) / ncol)
-    fig, axes = plt.subplots(nrow, ncol, figsize=(max(4.1 * ncol, 8.2), 3.1 * nrow + 0.6), squeeze=False)
-    ks = sorted({t["object_stiffness"] for t in traces if "object_stiffness" in t} | {t["stiffness"] for t in traces})
-    cmap = plt.get_cmap("viridis")
-    colours = {k: cmap(0.9 * i / max(1, len(ks) - 1)) for i, k in enumerate(ks)}
-    n_steps = config.episode_steps
-    for ax, name in zip(axes.flat, names, strict=False):
-        ts = [t for t in traces if t["policy"] == name]
-        ax.axvspan(config.task.squeeze_steps + 0.5, n_steps, color="#dddddd", alpha=0.6, lw=0)
-        # longest episode first and widest, so that the schedules, which often coincide, stay visible
-        order = sorted(ts, key=lambda t: -len(t["commands"]))
-        widths = np.linspace(5.0, 1.4, max(2, len(order)))
-        for lw, t in zip(widths, order, strict=False):
-            c = t["commands"]
-            what = "" if t.get("object_class", "ranges") == "ranges" else t["object_class"].replace("_", " ") + ", "
-            ax.plot(range(len(c)), c, color=colours[t["stiffness"]], lw=lw, alpha=0.85, solid_capstyle="butt",
-                    label=f"{what}k~ = {t['stiffness']:.2g}")
-            if t["success"]:
-                m, mc = "o", "#2ca02c"
-            elif t["damaged"]:
-                m, mc = "X", "#d62728"
-            else:
-                m, mc = "v", "#ff7f0e"
-            ax.plot(len(c) - 1, c[-1], m, color=mc, ms=8, mec="black", mew=0.6, zorder=5)
-        ax.set_title(ts[0]["label"], fontsize=8.5)
-        ax.set_xlim(0, n_steps + 2)
-        ax.set_xlabel("step")
-        if ts[0]["command"] == "jaw":
-            ax.set_ylabel("jaw closure (mm)")
-        else:
-            ax.set_ylabel("pressure (kPa)")
-            ax.set_ylim(-1, config.task.max_pressure_kpa * 1.05)
-        ax.text(0.5 * (config.task.squeeze_steps + n_steps), ax.get_ylim()[1] * 0.03, "hold", ha="center", fontsize=7.5,
-                color="#555555")
-        ax.grid(True, alpha=0.3)
-    for ax in list(axes.flat)[len(names):]:
-        ax.axis("off")
-    handles, labels = axes.flat[0].get_legend_handles_labels()
-    handles += [plt.Line2D([], [], ls="", marker=m, color=c, mec="black", mew=0.6, ms=7)
-                for m, c in (("o", "#2ca02c"), ("X", "#d62728"), ("v", "#ff7f0e"))]
-    labels += ["held to the end", "damaged", "slipped"]
-    ncol_legend = min(len(labels), 4)
-    fig.legend(handles, labels, loc="lower center", ncol=ncol_legend, fontsize=8, frameon=False)
-    fig.suptitle("the schedules applied (squeeze, then hold: shaded); marker = outcome", fontsize=9)
-    legend_rows = math.ceil(len(labels) / ncol_legend)
-    fig.tight_layout(rect=(0, min(0.4, 0.06 * legend_rows * 3.7 / fig.get_figheight()), 1, 0.97))
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
-
-
-# ---------------------------------------------------------------------------------------------
 # Command line
 # ---------------------------------------------------------------------------------------------
 
 
 def parse_overrides(items) -> dict[str, Any]:
-    """``["KEY=VALUE", ...]`` -> a dict, each VALUE read as YAML (``30``, ``[30, 1000]``, ``true``)."""
-    import yaml
+    """``["KEY=VALUE", ...]`` -> a dict, each VALUE read as YAML exactly as in a config file
+    (:func:`pneunet_env.yamlio.parse_value`: ``30``, ``5e1``, ``[30, 1000]``, ``true``); ``ValueError`` naming the
+    item for a bad value. A key set twice takes its last value."""
+    from pneunet_env.yamlio import parse_value
 
     out: dict[str, Any] = {}
     for item in items or []:
         key, eq, value = item.partition("=")
         if not eq or not key.strip():
             raise ValueError(f"--set needs KEY=VALUE, got {item!r}")
-        try:
-            out[key.strip()] = yaml.safe_load(value)
-        except yaml.YAMLError as exc:
-            msg = " ".join(str(exc).split())
-            raise ValueError(f"--set {item!r}: the value is not valid YAML ({msg})") from None
+        out[key.strip()] = parse_value(value, f"--set {item!r}")
     return out
 
 
@@ -824,23 +626,26 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "NAME:key=value,...), or an SB3 model .zip. Default: best-ramp, oracle, rigid, and the "
                              "task's PPO model if present (agents/models/ppo_kitchen.zip on the default task, "
                              "ppo_pneunet.zip on the paper's)")
-    parser.add_argument("--stiffness-grid", type=int, default=25,
+    parser.add_argument("--stiffness-grid", type=checks.integer(1, 10_000, "the stiffness grid size"), default=25,
                         help="log-spaced k~ values (default 25): on the catalogue, bins of drawn objects")
-    parser.add_argument("--episodes", type=int, default=2,
+    parser.add_argument("--episodes", type=checks.count, default=2,
                         help="episodes per policy and k~ (default 2): on the catalogue, objects per bin")
-    parser.add_argument("--out", type=Path, default=Path("evaluation"), help="output directory (default ./evaluation)")
-    parser.add_argument("--seed", type=int, default=0, help="base seed (default 0)")
-    parser.add_argument("--k-min", type=float, default=None,
+    parser.add_argument("--out", type=checks.output_dir, default="evaluation",
+                        help="output folder, checked before any episode; files in it are replaced (default "
+                             "./evaluation)")
+    parser.add_argument("--seed", type=checks.seed, default=0, help="base seed (default 0)")
+    parser.add_argument("--k-min", type=checks.positive, default=None,
                         help="smallest k~ (default: the task's objects' range)")
-    parser.add_argument("--k-max", type=float, default=None, help="largest k~ (default: the task's objects' range)")
-    parser.add_argument("--schedule-stiffness", type=float, nargs="+", default=None,
+    parser.add_argument("--k-max", type=checks.positive, default=None,
+                        help="largest k~ (default: the task's objects' range)")
+    parser.add_argument("--schedule-stiffness", type=checks.positive, nargs="+", default=None,
                         help="k~ of the episodes drawn in schedules.png (default: on the paper's ring 1e-5 3e-4 "
                              "1.2e-3 1e-2; on the catalogue four across the grid, each the drawn object nearest it)")
     parser.add_argument("--config", default=None, help="environment config YAML (default: the env's defaults)")
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                         help="override an environment config key (repeatable; VALUE is YAML); the paper's task: "
                              "--set use_case=null --set damage_rule=crush_fraction")
-    parser.add_argument("--objects", type=int, default=0,
+    parser.add_argument("--objects", type=checks.integer(0, checks.MAX_COUNT), default=0,
                         help="also run N objects drawn from the env's own distribution (held-out seeds) and report "
                              "each policy's overall success rate (default 0: none)")
     parser.add_argument("--no-plots", action="store_true", help="skip the PNGs (and matplotlib)")
@@ -858,6 +663,9 @@ def run(args: argparse.Namespace) -> int:
         usage_error(PROG, f"--objects must be >= 0, got {args.objects}")
     if args.episodes < 1:
         usage_error(PROG, f"--episodes must be >= 1, got {args.episodes}")
+    if args.stiffness_grid * args.episodes > checks.MAX_COUNT:  # every policy's objects are listed up front
+        usage_error(PROG, f"--stiffness-grid x --episodes is {args.stiffness_grid * args.episodes}; at most "
+                          f"{checks.MAX_COUNT}")
     if args.no_plots and args.schedule_stiffness is not None:
         usage_error(PROG, "--schedule-stiffness sets what schedules.png draws; it does nothing with --no-plots")
     if not args.no_plots:  # before any episode: not a traceback once the work is done
@@ -928,7 +736,7 @@ def run(args: argparse.Namespace) -> int:
         print()
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
-    (out / "evaluation.json").write_text(json.dumps(rows, indent=1, allow_nan=False) + "\n")
+    atomic_write_text(out / "evaluation.json", json.dumps(rows, indent=1, allow_nan=False) + "\n")
     from agents.oracle import feasible_stiffness
 
     paper_bins = not drawn
@@ -954,7 +762,7 @@ def run(args: argparse.Namespace) -> int:
         "config": config.to_dict(),
         "elapsed_s": elapsed,
     }
-    (out / "evaluation_summary.json").write_text(json.dumps(summary, indent=1, allow_nan=False) + "\n")
+    atomic_write_text(out / "evaluation_summary.json", json.dumps(summary, indent=1, allow_nan=False) + "\n")
     print(f"wrote {out / 'evaluation.json'}, {out / 'evaluation_summary.json'}")
     if not args.no_plots:
         plot_success(rows, out / "success_vs_stiffness.png", config)

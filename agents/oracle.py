@@ -130,6 +130,8 @@ class Oracle:
     def __init__(self, config: EnvConfig | None = None, resolution_kpa: float | None = None) -> None:
         self.config = EnvConfig() if config is None else config
         self.resolution_kpa = float(default_resolution(self.config) if resolution_kpa is None else resolution_kpa)
+        if not (math.isfinite(self.resolution_kpa) and self.resolution_kpa > 0.0):  # refused now, not at first use
+            raise ValueError(f"resolution_kpa must be a finite number > 0 (kPa), got {resolution_kpa!r}")
         self.step_fraction = self.config.task.max_pressure_step_kpa / self.config.task.max_pressure_kpa
         self.plan: OraclePlan | None = None
         self._cache: dict[tuple[float, ...], OraclePlan] = {}

@@ -22,7 +22,11 @@ An SB3 model ``DIR/NAME.zip`` is loaded with the algorithm named in ``DIR/NAME.j
 ``pneunet-grasp train``; else inferred from the saved policy class) and the normalisation statistics of
 ``DIR/NAME_vecnormalize.json`` (else ``DIR/vecnormalize.json``; none if neither exists): plain numbers
 (:class:`NormalizationStats`), read without ``pickle``. ``PATH.zip:vecnormalize=STATS,action=setpoint`` names
-them (and the action mode) explicitly. torch and stable-baselines3 are imported only for such a model.
+them (and the action mode) explicitly. The action mode (``rate``: the env's pressure change; ``setpoint``: a
+commanded pressure) is never guessed: both have the same action space, so a model with no metadata (no
+``NAME.json`` and no training run's ``run.json`` around it), or a cut one, is refused by name unless the spec gives
+``action=``. A cut or damaged model zip is refused by name too. torch and stable-baselines3 are imported only for
+such a model.
 
 **Security: load only models you trust.** A model ``.zip`` is code: stable-baselines3 unpickles parts of it
 (``cloudpickle``), so loading one runs whatever its author put there. Statistics are never unpickled implicitly:
@@ -35,6 +39,7 @@ JSON form.
 from __future__ import annotations
 
 import json
+import math
 import os
 import pickle
 import warnings
@@ -49,10 +54,11 @@ from agents.scripted import LinearRamp, StepPolicy, load_ramp
 from pneunet_env.config import EnvConfig
 from pneunet_env.files import atomic_write_bytes, stage_file  # noqa: F401  (re-exported: the one atomic writer)
 from pneunet_env.wrappers import setpoint_to_rate
+from pneunet_env.yamlio import load_json_file
 
 __all__ = ["PolicyEntry", "REGISTRY", "make_policy", "parse_spec", "SB3Policy", "BEST_RAMP_PATH", "BEST_RIGID_PATH",
            "vecnormalize_path", "setpoint_to_rate", "ACTION_MODES", "NormalizationStats", "RunningStats",
-           "convert_vecnormalize", "atomic_write_bytes", "stage_file"]
+           "convert_vecnormalize", "atomic_write_bytes", "stage_file", "check_model_zip"]
 
 AGENTS_DIR = Path(__file__).resolve().parent
 BEST_RAMP_PATH = AGENTS_DIR / "best_ramp.json"
@@ -137,10 +143,14 @@ def parse_spec(spec: str) -> tuple[str, dict[str, str]]:
 
 
 def _float(spec: str, key: str, value: str) -> float:
+    """A spec's number: finite (``nan``, ``inf`` and ``1e400``, which overflows, are refused by name)."""
     try:
-        return float(value)
+        x = float(value)
     except ValueError:
         raise ValueError(f"policy spec {spec!r}: {key}={value!r} is not a number") from None
+    if not math.isfinite(x):
+        raise ValueError(f"policy spec {spec!r}: {key}={value!r} is not a finite number")
+    return x
 
 
 def _int(spec: str, key: str, value: str) -> int:
@@ -230,7 +240,7 @@ def _rigid(spec, params, config, config_path=None):
 def _load_rigid(path: Path, config: EnvConfig, travel_mm: float):
     """The saved jaw ramp; its target is stored in mm (travels differ between configs) and re-expressed here."""
     pol = load_ramp(path, config)
-    data = json.loads(Path(path).read_text())
+    data = load_json_file(path, "ramp file")
     if "target_mm" in data:
         target = min(float(data["target_mm"]) / travel_mm, 1.0)
         pol = LinearRamp(target, pol.n_steps, config) if isinstance(pol, LinearRamp) else StepPolicy(target, config)
@@ -425,10 +435,7 @@ class NormalizationStats:
     def load(cls, path: str | Path) -> NormalizationStats:
         """Read the JSON written by :meth:`save` (no code runs)."""
         path = Path(path)
-        try:
-            data = json.loads(path.read_text())
-        except (OSError, json.JSONDecodeError) as exc:
-            raise ValueError(f"cannot read statistics {str(path)!r}: {exc}") from None
+        data = load_json_file(path, "statistics")  # ValueError naming it: unreadable, not JSON, a duplicate key
         return cls.from_dict(data, str(path))
 
 
@@ -471,22 +478,103 @@ def _observes_volume(path: Path, model, meta: dict[str, Any]) -> bool:
     return volume
 
 
+def _meta_files(path: Path) -> list[Path]:
+    """Where a model's metadata is looked for, in order: its sidecar ``DIR/NAME.json``, then the ``run.json`` of the
+    training run it lies in (``best_model.zip`` in the run folder, ``checkpoints/model_*.zip`` one level down)."""
+    return [path.with_suffix(".json"), path.parent / "run.json", path.parent.parent / "run.json"]
+
+
 def _model_meta(path: Path) -> dict[str, Any]:
     """The model's metadata: its exported JSON sidecar, else the ``run.json`` of the training run it lies in
     (``best_model.zip``, ``final_model.zip`` in the run folder, ``checkpoints/model_*.zip`` one level down), whose
-    ``algo`` and ``action`` say how to run it; ``{}`` if neither."""
-    candidates = [path.with_suffix(".json"), path.parent / "run.json", path.parent.parent / "run.json"]
-    for i, meta in enumerate(candidates):
+    ``algo`` and ``action`` say how to run it; ``{}`` if neither exists.
+
+    Raises:
+        ValueError: the first of those files that exists is unreadable (cut, not JSON, not a mapping): it names the
+            file. The caller decides whether an explicit action mode makes it harmless (:class:`SB3Policy`).
+    """
+    for i, meta in enumerate(_meta_files(path)):
         if not meta.is_file():
             continue
         try:
-            data = json.loads(meta.read_text())
-        except (json.JSONDecodeError, UnicodeDecodeError):
-            return {}
+            data = load_json_file(meta, "model metadata")
+        except (OSError, ValueError) as exc:  # a cut write, not UTF-8, not JSON
+            raise _BrokenMeta(meta, f"unreadable ({type(exc).__name__}: {exc})") from None
         if not isinstance(data, dict):
-            return {}
+            raise _BrokenMeta(meta, f"not a JSON mapping (a {type(data).__name__})")
         return data if i == 0 else {k: data[k] for k in ("algo", "action") if k in data}
     return {}
+
+
+class _BrokenMeta(ValueError):
+    """A model's metadata file exists but cannot be read."""
+
+    def __init__(self, file: Path, why: str) -> None:
+        super().__init__(f"{str(file)!r}: {why}")
+        self.file, self.why = file, why
+
+
+def check_model_zip(path: str | Path) -> None:
+    """``ValueError`` naming ``path`` unless it is a whole stable-baselines3 model zip (a cut file, from a hard kill
+    or a partial copy, has no zip directory; a damaged one fails its checksums; SB3's own loader would fail deep
+    inside with an ``AssertionError`` or a ``BadZipFile``)."""
+    import zipfile
+
+    path = Path(path)
+    try:
+        with zipfile.ZipFile(path) as zf:
+            names = zf.namelist()
+            bad = zf.testzip()
+    except (OSError, EOFError, zipfile.BadZipFile, zipfile.LargeZipFile, ValueError) as exc:
+        raise ValueError(f"model {str(path)!r} is not a readable zip file ({exc}): cut short or damaged (an "
+                         "interrupted copy or save?); use another copy of it") from None
+    if bad is not None:
+        raise ValueError(f"model {str(path)!r} is damaged: member {bad!r} fails its checksum; use another copy of it")
+    if "data" not in names:
+        raise ValueError(f"model {str(path)!r} is not a whole stable-baselines3 model (no 'data' member): cut short "
+                         "(an interrupted copy or save?), damaged, or another kind of zip; use another copy of it")
+
+
+def _hp_action(hp: Any) -> str | None:
+    """A training's hyperparameters -> its action mode (the setpoint wrapper in ``env_wrapper`` or
+    ``vec_env_wrapper``: ``setpoint``; else ``rate``), or ``None`` if they are not a mapping."""
+    if not isinstance(hp, dict):
+        return None
+    names: list[str] = []
+    for key in ("env_wrapper", "vec_env_wrapper"):
+        value = hp.get(key)
+        for item in value if isinstance(value, list) else [value]:
+            if isinstance(item, dict):
+                names += [str(k) for k in item]
+            elif item is not None:
+                names.append(str(item))
+    return "setpoint" if any(n.startswith("pneunet_env.wrappers.PressureSetpoint") for n in names) else "rate"
+
+
+def _action_mode(path: Path, meta: dict[str, Any], broken: _BrokenMeta | None) -> str:
+    """The action mode of a model without an explicit one: its metadata's ``action`` (else its hyperparameters'
+    wrappers); never a guess: ``ValueError`` naming the missing or broken file and the fix."""
+    source = next((f for f in _meta_files(path) if f.is_file()), None)
+    if "action" in meta:
+        if meta["action"] not in ACTION_MODES:
+            raise ValueError(f"model {str(path)!r}: its metadata {str(source)!r} gives action "
+                             f"{meta['action']!r}; expected one of {ACTION_MODES}")
+        return str(meta["action"])
+    if (mode := _hp_action(meta.get("hyperparameters"))) is not None:
+        return mode
+    fix = (f"give the mode explicitly: the policy spec '{path}:action=setpoint' (or action=rate), or "
+           "SB3Policy(..., action=...)")
+    both = ("its action space, Box(-1, 1, (1,)), means either a pressure change (rate) or a pressure setpoint "
+            "(setpoint)")
+    if broken is not None:
+        raise ValueError(f"model {str(path)!r}: cannot tell its action mode: its metadata {broken} and {both}; "
+                         f"restore that file (pneunet-grasp train --export writes it) or {fix}")
+    if source is not None:
+        raise ValueError(f"model {str(path)!r}: cannot tell its action mode: its metadata {str(source)!r} says "
+                         f"neither 'action' nor 'hyperparameters', and {both}; {fix}")
+    raise ValueError(f"model {str(path)!r}: cannot tell its action mode: no metadata {str(path.with_suffix('.json'))!r}"
+                     f" beside it (pneunet-grasp train --export writes it; a training run's run.json serves too) and "
+                     f"{both}; {fix}")
 
 
 def _infer_algo(path: Path, meta: dict[str, Any]) -> str:
@@ -495,7 +583,11 @@ def _infer_algo(path: Path, meta: dict[str, Any]) -> str:
         return algo.upper()
     from stable_baselines3.common.save_util import load_from_zip_file
 
-    data, _, _ = load_from_zip_file(path, load_data=True, device="cpu")
+    try:
+        data, _, _ = load_from_zip_file(path, load_data=True, device="cpu")
+    except Exception as exc:  # a zip that passed check_model_zip but SB3 cannot read: named
+        raise ValueError(f"model {str(path)!r}: stable-baselines3 cannot read it "
+                         f"({type(exc).__name__}: {exc})") from None
     cls = data.get("policy_class") if data else None
     name = getattr(cls, "__name__", str(cls))
     for algo in ("SAC", "TD3"):
@@ -514,7 +606,9 @@ class SB3Policy:
             (:func:`vecnormalize_path`); a ``.json`` path reads that file; any other path is unpickled as a
             ``VecNormalize`` (it runs code: name only a pickle you trust); ``False``: none.
         action: ``"rate"`` or ``"setpoint"`` (:data:`ACTION_MODES`); default: the ``action`` of the model's
-            metadata JSON (``pneunet-grasp train --export`` writes it), else ``"rate"``.
+            metadata (its sidecar ``NAME.json``, which ``pneunet-grasp train --export`` writes, or its training
+            run's ``run.json``). Never guessed: with no metadata, or a broken one, it must be given (``ValueError``
+            naming the file otherwise), and then it wins (a broken metadata file is ignored, with a warning).
         config: the env's config (the setpoint regulator's step); the defaults if ``None``.
     """
 
@@ -528,16 +622,29 @@ class SB3Policy:
         if torch.get_num_threads() > 2:  # one observation at a time: threads only add overhead
             torch.set_num_threads(1)
         self.path = Path(path)
-        meta = _model_meta(self.path)
+        if action is not None and action not in ACTION_MODES:
+            raise ValueError(f"model {str(path)!r}: action mode must be one of {ACTION_MODES}, got {action!r}")
+        check_model_zip(self.path)  # a cut or damaged file is named here, not deep inside SB3
+        broken = None
+        try:
+            meta = _model_meta(self.path)
+        except _BrokenMeta as exc:
+            if action is None:  # the mode is unknown: refused below, naming the file
+                broken, meta = exc, {}
+            else:  # the caller says how to run it: the model's own file tells the rest (algorithm, observation)
+                warnings.warn(f"model {str(path)!r}: ignoring its metadata {exc} (the action mode was given: "
+                              f"{action})", stacklevel=2)
+                meta = {}
         self.algo = _infer_algo(self.path, meta)
-        self.action_mode = str(action or meta.get("action", "rate"))
-        if self.action_mode not in ACTION_MODES:
-            raise ValueError(f"model {str(path)!r}: action mode must be one of {ACTION_MODES}, "
-                             f"got {self.action_mode!r}")
         config = EnvConfig() if config is None else config
         self.step_fraction = config.task.max_pressure_step_kpa / config.task.max_pressure_kpa
-        self.model = getattr(sb3, self.algo).load(self.path, device="cpu")
+        try:
+            self.model = getattr(sb3, self.algo).load(self.path, device="cpu")
+        except Exception as exc:  # a zip SB3 cannot read: named, not an AssertionError from inside
+            raise ValueError(f"model {str(path)!r}: stable-baselines3 cannot load it as {self.algo} "
+                             f"({type(exc).__name__}: {exc})") from None
         self.observe_volume = _observes_volume(self.path, self.model, meta)
+        self.action_mode = str(action) if action is not None else _action_mode(self.path, meta, broken)
         """Whether the model observes the chamber's volume change: its env needs ``observe_volume=True``."""
         self.deterministic = deterministic
         self._norm = None

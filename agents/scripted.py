@@ -18,7 +18,7 @@ object from it). :func:`load_ramp` reads a ramp saved as JSON by :mod:`agents.se
 
 from __future__ import annotations
 
-import json
+import math
 import os
 from pathlib import Path
 from typing import Any
@@ -26,17 +26,55 @@ from typing import Any
 import numpy as np
 
 from pneunet_env.config import EnvConfig
+from pneunet_env.files import atomic_write_json
+from pneunet_env.yamlio import load_json_file
 
-__all__ = ["LinearRamp", "StepPolicy", "load_ramp", "save_ramp", "jsonable"]
+__all__ = ["LinearRamp", "StepPolicy", "load_ramp", "save_ramp", "jsonable", "MAX_RAMP_STEPS"]
+
+MAX_RAMP_STEPS = 10**9
+"""The longest ramp, in steps: far beyond any episode (``squeeze_steps`` and ``hold_steps`` are at most 10**6 each),
+and small enough that ``target / n_steps`` is an ordinary float."""
+
+
+def _check_target(target: Any) -> float:
+    """``target`` as a float in ``[0, 1]``; ``TypeError``/``ValueError`` naming it otherwise (NaN and inf too)."""
+    if target is None or isinstance(target, (bool, np.bool_, str, bytes)):
+        raise TypeError(f"target must be a number (a fraction of max_pressure_kpa in [0, 1]), got {target!r}")
+    try:
+        value = float(target)
+    except (TypeError, ValueError, OverflowError):
+        raise TypeError(f"target must be a number (a fraction of max_pressure_kpa in [0, 1]), got {target!r}") \
+            from None
+    if not 0.0 <= value <= 1.0:
+        raise ValueError(f"target must be a fraction of max_pressure_kpa in [0, 1], got {target!r}")
+    return value
+
+
+def _check_steps(n_steps: Any) -> int:
+    """``n_steps`` as an int in ``[1, MAX_RAMP_STEPS]`` (a whole float such as ``40.0`` is accepted); ``TypeError`` or
+    ``ValueError`` naming it otherwise (NaN, inf, fractions, booleans, strings, too large)."""
+    if n_steps is None or isinstance(n_steps, (bool, np.bool_, str, bytes)):
+        raise TypeError(f"n_steps must be an integer in [1, {MAX_RAMP_STEPS}], got {n_steps!r}")
+    if isinstance(n_steps, (int, np.integer)):
+        n = int(n_steps)
+    else:
+        try:
+            x = float(n_steps)
+        except (TypeError, ValueError, OverflowError):
+            raise TypeError(f"n_steps must be an integer in [1, {MAX_RAMP_STEPS}], got {n_steps!r}") from None
+        if not math.isfinite(x) or x != math.floor(x) or abs(x) > 2 * MAX_RAMP_STEPS:
+            raise ValueError(f"n_steps must be an integer in [1, {MAX_RAMP_STEPS}], got {n_steps!r}")
+        n = int(x)
+    if not 1 <= n <= MAX_RAMP_STEPS:
+        raise ValueError(f"n_steps must be an integer in [1, {MAX_RAMP_STEPS}], got {n_steps!r}")
+    return n
 
 
 class _TargetPolicy:
     """Shared plumbing: a target pressure and the env's action scale."""
 
     def __init__(self, target: float, config: EnvConfig | None = None) -> None:
-        target = float(target)
-        if not 0.0 <= target <= 1.0:
-            raise ValueError(f"target must be a fraction of max_pressure_kpa in [0, 1], got {target!r}")
+        target = _check_target(target)
         config = EnvConfig() if config is None else config
         self.target = target
         # the change of p/p_max that an action of 1 makes
@@ -49,8 +87,11 @@ class _TargetPolicy:
         """The action for one observation (shape ``(1,)``) or a batch (shape ``(N, 1)``), float32."""
         obs = np.asarray(observation, dtype=np.float64)
         p = obs[..., 0]
-        a = (self._next(p) - p) / self.step_fraction
-        return np.clip(a, -1.0, 1.0)[..., None].astype(np.float32)
+        change = self._next(p) - p
+        # holding: the observation is float32, so the target is seen to within its rounding; an exact 0 holds the
+        # pressure (a change inside the rounding would creep the pressure by ~1e-8 a step, and re-solve every step)
+        change = np.where(np.abs(change) <= np.spacing(p.astype(np.float32)), 0.0, change)
+        return np.clip(change / self.step_fraction, -1.0, 1.0)[..., None].astype(np.float32)
 
     def predict(self, observation, state=None, episode_start=None, deterministic: bool = True):
         """stable-baselines3's ``predict`` signature: ``(action, state)``."""
@@ -68,16 +109,14 @@ class LinearRamp(_TargetPolicy):
 
     Args:
         target: the final pressure, a fraction of ``max_pressure_kpa`` in ``[0, 1]``.
-        n_steps: steps to reach it from 0 (at least 1). A ramp steeper than the largest step
-            (``max_pressure_step_kpa``) is limited by it.
+        n_steps: steps to reach it from 0 (an integer in ``[1, MAX_RAMP_STEPS]``). A ramp steeper than the largest
+            step (``max_pressure_step_kpa``) is limited by it.
         config: the environment's config (for its action scale); the defaults if ``None``.
     """
 
     def __init__(self, target: float, n_steps: int, config: EnvConfig | None = None) -> None:
         super().__init__(target, config)
-        if int(n_steps) != n_steps or n_steps < 1:
-            raise ValueError(f"n_steps must be an integer >= 1, got {n_steps!r}")
-        self.n_steps = int(n_steps)
+        self.n_steps = _check_steps(n_steps)
         self.increment = self.target / self.n_steps
 
     @classmethod
@@ -123,11 +162,8 @@ class StepPolicy(_TargetPolicy):
 
 def save_ramp(policy: LinearRamp | StepPolicy, path: str | os.PathLike, **metadata: Any) -> Path:
     """Write ``policy.to_dict()`` and ``metadata`` (how it was found, its score) as JSON; returns the path."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     data = {**policy.to_dict(), **metadata}
-    path.write_text(json.dumps(data, indent=1, default=jsonable) + "\n")
-    return path
+    return atomic_write_json(path, data, default=jsonable)  # written whole or not at all
 
 
 def jsonable(x: Any) -> Any:
@@ -148,12 +184,7 @@ def load_ramp(path: str | os.PathLike, config: EnvConfig | None = None) -> Linea
         ValueError: the file is missing, not JSON, or does not describe a ramp (named).
     """
     path = Path(path)
-    try:
-        data = json.loads(path.read_text())
-    except OSError as exc:
-        raise ValueError(f"cannot read ramp parameters from {str(path)!r}: {exc}") from None
-    except json.JSONDecodeError as exc:
-        raise ValueError(f"ramp file {str(path)!r} is not JSON: {exc}") from None
+    data = load_json_file(path, "ramp file")  # ValueError naming it: unreadable, not JSON, a duplicate key
     if not isinstance(data, dict):
         raise ValueError(f"ramp file {str(path)!r} must hold a JSON object, got {type(data).__name__}")
     kind = data.get("kind")

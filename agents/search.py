@@ -21,6 +21,11 @@ justified ones of ``docs/env.md``. It takes ``--objects``, ``--seed``, ``--grid`
 options (``--gripper``, ``--targets``, ``--durations``, ``--refine``, ``--plot``, ``--config``, ``--set``) are an
 error with it, and ``--grid`` an error without it (exit status 2).
 
+Nothing is written until the search (or the study) ends, and each output is written whole (a temporary file in
+the same folder, then renamed): Ctrl-C leaves the previous result as it was. The output (the JSON; with
+``--sensitivity``, the folder) is locked while a search runs (:class:`pneunet_env.locks.RunLock`): a second search
+on the same output is refused by name; ``--force`` takes over a lock whose process looks alive.
+
 Both print the task they run on (its objects, its damage rule in words). A PNG (``--plot``, ``--sensitivity``) needs
 matplotlib (extra ``plot``), checked before the search starts.
 """
@@ -28,8 +33,6 @@ matplotlib (extra ``plot``), checked before the search starts.
 from __future__ import annotations
 
 import argparse
-import json
-import math
 import sys
 import time
 from collections.abc import Callable, Sequence
@@ -48,9 +51,14 @@ from agents.evaluate import (
     task_description,
     usage_error,
 )
-from agents.scripted import LinearRamp, save_ramp
+from agents.plotting import plot_search, plot_sensitivity  # the figures (re-exported: they lived here)
+from agents.scripted import LinearRamp, jsonable
 from pneunet_env import PAPER_TASK
+from pneunet_env.arguments import count, integer, output_file, real
+from pneunet_env.arguments import seed as seed_type
 from pneunet_env.config import EnvConfig, load_config
+from pneunet_env.files import atomic_write_json, atomic_write_text, deferred_interrupt
+from pneunet_env.locks import RunLock
 from pneunet_env.progress import add_progress_argument
 from pneunet_env.progress import progress as progress_bar
 
@@ -230,37 +238,9 @@ def save_best(best: Candidate, path: Path, config: EnvConfig, gripper: str, n_ob
         score=best.summary(config),
         created_by=f"python -m agents.search --gripper {gripper} --objects {n_objects} --seed {seed}",
     )
-    return save_ramp(LinearRamp(best.target, best.n_steps, config), path, **meta)
-
-
-def plot_search(cands: Sequence[Candidate], best: Candidate, path: Path, config: EnvConfig, gripper: str) -> Path:
-    """Success rate vs target, one line per duration; the best marked."""
-    from agents.evaluate import _matplotlib
-    from pneunet_env.envs.rigid import default_jaw_travel_mm
-
-    plt = _matplotlib()
-    full, unit = (default_jaw_travel_mm(config), "mm") if gripper == "rigid" else (config.task.max_pressure_kpa, "kPa")
-    fig, ax = plt.subplots(figsize=(7, 3.8))
-    durations = sorted({c.n_steps for c in cands})
-    cmap = plt.get_cmap("viridis")
-    for j, n in enumerate(durations):
-        cs = sorted((c for c in cands if c.n_steps == n), key=lambda c: c.target)
-        ax.plot([c.target * full for c in cs], [c.success_rate for c in cs], color=cmap(j / max(1, len(durations) - 1)),
-                lw=1.3, label=f"{n} steps")
-    ax.plot(best.target * full, best.success_rate, "*", color="red", ms=14, mec="black", label="best")
-    ax.set_xlabel(f"ramp target ({unit})")
-    ax.set_ylabel("success rate")
-    ax.set_title(f"{'rigid jaw' if gripper == 'rigid' else 'pressure'} ramp search: best {best.target * full:.3g} "
-                 f"{unit} over {best.n_steps} steps, success {best.success_rate:.1%}\non "
-                 f"{task_description(config).split(' (')[0].split(':')[0]}, {config.task.damage_rule} damage rule",
-                 fontsize=9)
-    ax.legend(fontsize=7, ncol=2, title="ramp duration", title_fontsize=7)
-    ax.grid(True, alpha=0.3)
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
-    return path
+    data = {**LinearRamp(best.target, best.n_steps, config).to_dict(), **meta}  # save_ramp's form, written whole
+    with deferred_interrupt():
+        return atomic_write_json(path, data, default=jsonable)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -354,8 +334,9 @@ def sensitivity_study(out: Path, settings=SENSITIVITY_SETTINGS, n_objects: int =
     out.mkdir(parents=True, exist_ok=True)
     meta = {"note": "a sensitivity study of the damage/slip thresholds; NOT the environment's defaults",
             "objects_per_search": n_objects, "stiffness_grid": grid, "episodes": episodes, "seed": seed}
-    (out / "sensitivity.json").write_text(json.dumps({"meta": meta, "settings": results}, indent=1) + "\n")
-    (out / "sensitivity.md").write_text(sensitivity_table(results))
+    with deferred_interrupt():
+        atomic_write_json(out / "sensitivity.json", {"meta": meta, "settings": results})
+        atomic_write_text(out / "sensitivity.md", sensitivity_table(results))
     plot_sensitivity(results, out / "sensitivity.png")
     return results
 
@@ -384,55 +365,6 @@ def sensitivity_table(results) -> str:
     return "\n".join(lines) + "\n"
 
 
-def plot_sensitivity(results, path: Path) -> Path:
-    """Small multiples: success vs ``k~`` for best-ramp, oracle and rigid, one panel per setting."""
-    from agents.evaluate import SOFT_MAX, STIFF_MIN, _matplotlib, _style
-
-    plt = _matplotlib()
-    n = len(results)
-    ncol = 3
-    nrow = math.ceil(n / ncol)
-    fig, axes = plt.subplots(nrow, ncol, figsize=(4.2 * ncol, 2.7 * nrow), sharex=True, sharey=True, squeeze=False)
-    for ax, res in zip(axes.flat, results, strict=False):
-        ks = [r["object_stiffness"] for r in res["rows"]]
-        lo, hi = min(ks) / 1.3, max(ks) * 1.3
-        ax.axvspan(lo, SOFT_MAX, color="#4c9be8", alpha=0.12, lw=0)
-        ax.axvspan(STIFF_MIN, hi, color="#f0a030", alpha=0.14, lw=0)
-        ax.axvline(res["feasible_stiffness"], color="#555555", ls=(0, (1, 2)), lw=1.2)
-        for name in ("best-ramp", "oracle", "rigid"):
-            rs = sorted((r for r in res["rows"] if r["policy"] == name), key=lambda r: r["object_stiffness"])
-            st = _style(name)
-            st.pop("ms", None)
-            st["marker"] = ""
-            ax.plot([r["object_stiffness"] for r in rs], [r["success_rate"] for r in rs], label=name, **st)
-        ax.set_xscale("log")
-        ax.set_xlim(lo, hi)
-        ax.set_ylim(-0.05, 1.08)
-        ax.grid(True, alpha=0.3)
-        reg = res["regimes"]["best-ramp"]
-        ax.set_title(f"{res['description']}\nbest-ramp {res['best_ramp']['target_kpa']:.3g} kPa: soft "
-                     f"{_pct(reg['soft']['success_rate']).strip()}, stiff {_pct(reg['stiff']['success_rate']).strip()}",
-                     fontsize=7.5)
-    for ax in list(axes.flat)[n:]:
-        ax.axis("off")
-    for ax in axes[-1]:
-        ax.set_xlabel("k~")
-    for ax in axes[:, 0]:
-        ax.set_ylabel("success rate")
-    handles, labels = axes.flat[0].get_legend_handles_labels()
-    handles.append(plt.Line2D([], [], color="#555555", ls=(0, (1, 2))))
-    labels.append("below this k~ no state both holds and spares the object")
-    fig.legend(handles, labels, loc="lower center", ncol=4, fontsize=8, frameon=False)
-    fig.suptitle("Sensitivity of the soft-object result to the thresholds of the paper's task (its 250 mm ring; a "
-                 "study, not the env's defaults);\nthe paper's k~ bins shaded: soft (k~ < 1e-4) and stiff "
-                 "(k~ >= 1e-3)", fontsize=9)
-    fig.tight_layout(rect=(0, 0.04, 1, 0.95))
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
-
-
 # ---------------------------------------------------------------------------------------------
 # Command line: python -m agents.search
 # ---------------------------------------------------------------------------------------------
@@ -451,28 +383,31 @@ PROG = "pneunet-grasp search"
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--gripper", choices=("pneunet", "rigid"), default=None,
                         help="pneunet: the best-ramp policy (default); rigid: the rigid gripper's jaw ramp")
-    parser.add_argument("--objects", type=int, default=None,
+    parser.add_argument("--objects", type=count, default=None,
                         help=f"objects (seeded episodes) per candidate (default {SEARCH_DEFAULTS['objects']}; "
                              f"with --sensitivity {SENSITIVITY_OBJECTS})")
-    parser.add_argument("--seed", type=int, default=0, help="base seed of the objects (default 0)")
-    parser.add_argument("--targets", type=float, nargs="+", default=None,
+    parser.add_argument("--seed", type=seed_type, default=0, help="base seed of the objects (default 0)")
+    parser.add_argument("--targets", type=real(0, 1, above=True), nargs="+", default=None,
                         help="coarse grid of targets, fractions of p_max or of the jaw travel (default 0.025 .. 1)")
-    parser.add_argument("--durations", type=int, nargs="+", default=None,
+    parser.add_argument("--durations", type=integer(1, 1_000_000, "--durations"), nargs="+", default=None,
                         help=f"ramp durations in steps (default {' '.join(map(str, DURATIONS))})")
-    parser.add_argument("--refine", type=float, default=None,
+    parser.add_argument("--refine", type=real(0, 1), default=None,
                         help="spacing of the fine grid around the best target (default 0.005; 0: none)")
-    parser.add_argument("--out", type=Path, default=None,
+    parser.add_argument("--out", type=output_file, default=None,
                         help="where to write the result (default agents/best_ramp.json or agents/best_rigid.json); "
                              "with --sensitivity, the output directory")
-    parser.add_argument("--plot", type=Path, default=None, help="also plot success vs target to this PNG")
+    parser.add_argument("--plot", type=output_file, default=None, help="also plot success vs target to this PNG")
     parser.add_argument("--config", default=None, help="environment config YAML (default: the env's defaults)")
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                         help="override an environment config key (repeatable; VALUE is YAML)")
     parser.add_argument("--sensitivity", action="store_true",
                         help="run the threshold sensitivity study of the paper's task instead (writes "
                              "sensitivity.{json,md,png} to --out; takes --objects, --seed, --grid, --out only)")
-    parser.add_argument("--grid", type=int, default=None,
+    parser.add_argument("--grid", type=integer(2, 10_000, "--grid"), default=None,
                         help=f"--sensitivity only: stiffness grid size (default {SENSITIVITY_GRID})")
+    parser.add_argument("--force", action="store_true",
+                        help="take over the output's lock even if the process holding it looks alive (only when you "
+                             "know it is gone; a lock of a dead process on this host is taken over without it)")
     add_progress_argument(parser, "--quiet")
 
 
@@ -496,9 +431,11 @@ def run(args: argparse.Namespace) -> int:
                               "--objects, --seed, --grid and --out")
         require_extra("search", "matplotlib", "plot", "the sensitivity study's sensitivity.png")
         out = Path("docs/img/results") if args.out is None else args.out
-        sensitivity_study(out, n_objects=SENSITIVITY_OBJECTS if args.objects is None else args.objects,
-                          grid=SENSITIVITY_GRID if args.grid is None else args.grid, seed=args.seed,
-                          progress=args.progress)
+        with RunLock(out, command=" ".join([PROG, "--sensitivity", "--out", str(out)]),
+                     force=getattr(args, "force", False), what="output folder"):
+            sensitivity_study(out, n_objects=SENSITIVITY_OBJECTS if args.objects is None else args.objects,
+                              grid=SENSITIVITY_GRID if args.grid is None else args.grid, seed=args.seed,
+                              progress=args.progress)
         print(f"wrote {out / 'sensitivity.json'}, {out / 'sensitivity.md'}, {out / 'sensitivity.png'}")
         return 0
     if args.grid is not None:
@@ -517,16 +454,18 @@ def run(args: argparse.Namespace) -> int:
           f"objects of {task_description(config)}")
     print(f"  {damage_rule_text(config)}")
     print(f"  {regime_text(config)}")
-    try:
-        t0 = time.perf_counter()
-        best, cands = search_ramp(config, args.gripper, args.objects, args.seed, args.targets, args.durations,
-                                  args.refine, progress=args.progress)
-    except ValueError as exc:
-        raise SystemExit(f"{PROG}: {exc}") from None
-    elapsed = time.perf_counter() - t0
     out = args.out or tuned_path(config, args.gripper)
-    save_best(best, out, config, args.gripper, args.objects, args.seed,
-              {**({"config": str(args.config)} if args.config else {}), **overrides}, elapsed)
+    with RunLock(out, file=True, command=f"{PROG} --gripper {args.gripper} --out {out}",
+                 force=getattr(args, "force", False)):  # one search writes it at a time; nothing until the end
+        try:
+            t0 = time.perf_counter()
+            best, cands = search_ramp(config, args.gripper, args.objects, args.seed, args.targets, args.durations,
+                                      args.refine, progress=args.progress)
+        except ValueError as exc:
+            raise SystemExit(f"{PROG}: {exc}") from None
+        elapsed = time.perf_counter() - t0
+        save_best(best, out, config, args.gripper, args.objects, args.seed,
+                  {**({"config": str(args.config)} if args.config else {}), **overrides}, elapsed)
     s = best.summary(config)
     unit = "of the jaw travel" if args.gripper == "rigid" else "of p_max"
     regimes = rate_parts([("force-controlled", s["success_rate_force"], s["objects_force"]),
@@ -549,9 +488,16 @@ def run(args: argparse.Namespace) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """``python -m agents.search``: as ``pneunet-grasp search``; Ctrl-C ends it with one line and exit status 130
+    (nothing is written before the search ends, and each output is written whole)."""
     parser = argparse.ArgumentParser(prog="python -m agents.search", description=__doc__.split("\n\n")[0])
     add_arguments(parser)
-    return run(parser.parse_args(argv))
+    args = parser.parse_args(argv)
+    try:
+        return run(args)
+    except KeyboardInterrupt:
+        print(f"{parser.prog}: interrupted", file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -18,6 +18,13 @@ seeds, next to its own untrained start:
    best-ramp drawn on it; and the held-out success of each seed, untrained against trained). ``--export DIR/NAME``
    exports the **median seed's** model (by held-out success on all objects), and its JSON says so and lists every
    seed's score.
+
+Nothing is lost: the study folder is locked while the study runs (:class:`pneunet_env.locks.RunLock`; a second
+study on it is refused by name, ``--force`` takes the lock over), and so is each seed's folder while it trains
+(:func:`agents.train.train`). Every file is written whole or not at all. Ctrl-C stops the seeds that are training
+(each saves its model as a checkpoint and records ``state: interrupted``), starts no other, and propagates; the
+same command resumes. With ``--jobs``, the workers take Ctrl-C from the terminal (their process group); a SIGINT
+sent to the parent alone lets the seeds already training finish, and starts no other.
 """
 
 from __future__ import annotations
@@ -30,6 +37,10 @@ from typing import Any
 
 import numpy as np
 
+from agents.plotting import plot_seeds  # the figure (re-exported: it lived here)
+from pneunet_env.files import atomic_write_json, deferred_interrupt
+from pneunet_env.yamlio import load_json_file
+
 __all__ = ["run_seeds", "train_seed", "score_seeds", "summarise", "plot_seeds", "median_seed"]
 
 
@@ -37,25 +48,23 @@ def _seed_dir(run_dir: Path, seed: int) -> Path:
     return run_dir / f"seed-{seed}"
 
 
-def train_seed(hp: dict[str, Any], run_dir: Path, progress: bool, config_path: str, command: str) -> dict[str, Any]:
-    """Train one seed in ``run_dir`` (resumed from its newest checkpoint if it has one); its run record.
+def train_seed(hp: dict[str, Any], run_dir: Path, progress: bool, config_path: str, command: str,
+               force: bool = False) -> dict[str, Any]:
+    """Train one seed in ``run_dir`` (resumed from its newest readable checkpoint if it has one); its run record.
 
-    A seed whose ``run.json`` reached ``hp["n_timesteps"]`` is done: its record is returned as it is. One that
-    stopped short (interrupted, or a study extended by a larger ``--timesteps``) resumes from its newest checkpoint."""
-    from agents.train import latest_checkpoint, train, write_record
+    A seed whose ``run.json`` reached ``hp["n_timesteps"]`` (and is not marked running, interrupted or failed) is
+    done: its record is returned as it is. One that stopped short (interrupted, or a study extended by a larger
+    ``--timesteps``) resumes from its newest checkpoint. ``force``: take over the seed folder's lock."""
+    from agents.train import latest_checkpoint, train
 
     if _done(run_dir, hp):
         return _record(run_dir)
-    record_path = run_dir / "run.json"
     resume = latest_checkpoint(run_dir)
     if (old := _record(run_dir)) is not None and (run_dir / "final_model.zip").is_file():  # extended: from its end
         steps = int(old.get("timesteps", 0))
         if resume is None or steps > int(resume.stem.split("_")[1]):
             resume = run_dir / "final_model.zip"
-    record = train(hp, run_dir, resume, progress=progress, config_path=config_path)
-    record["command"] = command
-    write_record(record_path, record)
-    return record
+    return train(hp, run_dir, resume, progress=progress, config_path=config_path, command=command, force=force)
 
 
 _FREE = ("n_timesteps", "max_train_minutes", "torch_threads")
@@ -64,7 +73,7 @@ _FREE = ("n_timesteps", "max_train_minutes", "torch_threads")
 
 def _record(run_dir: Path) -> dict[str, Any] | None:
     try:
-        data = json.loads((run_dir / "run.json").read_text())
+        data = load_json_file(run_dir / "run.json", "run record")
     except (OSError, ValueError):
         return None
     return data if isinstance(data, dict) else None
@@ -83,16 +92,33 @@ def _check_settings(run_dir: Path, hp: dict[str, Any]) -> None:
                          "use another --run-dir, or the same settings to resume or extend it")
 
 
+_UNFINISHED = ("running", "interrupted", "failed")
+"""A run record's states that are not an end (a record without ``state``, written by 0.7.0 or older, ended)."""
+
+
 def _done(run_dir: Path, hp: dict[str, Any]) -> bool:
     record = _record(run_dir)
     try:
-        return record is not None and int(record["timesteps"]) >= int(hp["n_timesteps"])
+        return (record is not None and record.get("state") not in _UNFINISHED
+                and int(record["timesteps"]) >= int(hp["n_timesteps"]))
     except (ValueError, KeyError, TypeError):
         return False
 
 
+def _worker_init() -> None:  # a process of the pool: idle, it leaves Ctrl-C to the parent
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
 def _train_job(job: tuple) -> dict[str, Any]:  # a process of the pool: module-level, so that it pickles
-    return train_seed(*job)
+    import signal
+
+    signal.signal(signal.SIGINT, signal.default_int_handler)  # training: Ctrl-C saves the seed's run and stops it
+    try:
+        return train_seed(*job)
+    finally:
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
 
 
 def _curve(run_dir: Path) -> dict[str, list[float]]:
@@ -171,61 +197,6 @@ def median_seed(scores: dict[str, Any]) -> int:
     return ranked[(len(ranked) - 1) // 2][1]
 
 
-def plot_seeds(result: dict[str, Any], path: Path) -> Path | None:
-    """``learning_curves.png``: the evaluation success against timesteps (each seed thin, the mean bold, the range
-    shaded, best-ramp dashed), and each seed's held-out success, untrained start against trained model."""
-    try:
-        from agents.evaluate import _matplotlib
-
-        plt = _matplotlib()
-    except ImportError:
-        return None
-    curves = {s: c for s, c in result["curves"].items() if "success" in c}
-    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(10, 3.8), gridspec_kw={"width_ratios": [1.7, 1]})
-    common = sorted(set.intersection(*(set(c["timesteps"]) for c in curves.values()))) if curves else []
-    if common:  # the mean and range where every seed was evaluated
-        t = np.asarray(common, dtype=float)
-        ys = np.array([[dict(zip(c["timesteps"], c["success"], strict=True))[x] for x in common]
-                       for c in curves.values()])
-        for c in curves.values():
-            ax.plot(c["timesteps"], c["success"], lw=0.8, alpha=0.5, color="#2ca02c")
-        ax.fill_between(t, ys.min(axis=0), ys.max(axis=0), color="#2ca02c", alpha=0.15, lw=0,
-                        label=f"range over {len(curves)} seeds")
-        ax.plot(t, ys.mean(axis=0), "o-", ms=3, lw=2, color="#1b7a1b", label="mean over seeds")
-    refs = [r for r in result["eval_best_ramp"].values() if r is not None]
-    if refs:
-        ax.axhline(float(np.mean(refs)), color="#1f5fbf", ls="--", lw=1.3, label="best-ramp, same objects")
-    ax.set_xlabel("timesteps (step 0: the untrained policy)")
-    ax.set_ylabel("success rate (evaluation objects)")
-    ax.set_ylim(-0.02, 1.02)
-    ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=8, loc="lower right")
-    scores = result["held_out"]
-    seeds = list(scores["seeds"])
-    x = np.arange(len(seeds))
-    for key, marker, colour, dx in (("untrained", "o", "#999999", -0.12), ("trained", "s", "#1b7a1b", 0.12)):
-        y = [scores["seeds"][s][key]["all"] if scores["seeds"][s].get(key) else np.nan for s in seeds]
-        ax2.plot(x + dx, y, marker, color=colour, ms=7, ls="none", label=f"{key} (step 0)" if key == "untrained"
-                 else "trained (best evaluation's model)")
-    ax2.axhline(scores["best_ramp"]["all"], color="#1f5fbf", ls="--", lw=1.3, label="best-ramp")
-    med = result.get("median_seed")
-    ax2.set_xticks(x, [f"{s}*" if med is not None and int(s) == med else s for s in seeds])
-    ax2.set_xlabel("seed (*: the median seed, exported)")
-    ax2.set_ylabel(f"success, {scores['objects']} held-out objects")
-    ax2.set_ylim(-0.02, 1.02)
-    ax2.grid(True, alpha=0.3)
-    ax2.legend(fontsize=8, loc="lower right")
-    fig.suptitle(f"{result['algo'].upper()} over {len(seeds)} seeds ({result['observation']}): learning curves and "
-                 "held-out success against the untrained start", fontsize=9)
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(path.stem + ".tmp.png")
-    fig.savefig(tmp, dpi=120)
-    plt.close(fig)
-    tmp.replace(path)
-    return path
-
-
 def _command(args: argparse.Namespace, run_dir: Path, seed: int) -> str:
     from agents.train import _command as one
 
@@ -239,8 +210,7 @@ def _pct(x: float | None) -> str:
 
 def run_seeds(args: argparse.Namespace, hp: dict[str, Any], run_dir: Path) -> int:
     """The ``--seeds`` form of ``pneunet-grasp train`` (see the module's docstring)."""
-    from agents.policies import atomic_write_bytes
-    from agents.train import export
+    from pneunet_env.locks import RunLock
 
     n, jobs, objects = args.seeds, args.jobs, args.objects
     for flag, value in (("--seeds", n), ("--jobs", jobs), ("--objects", objects)):
@@ -248,11 +218,21 @@ def run_seeds(args: argparse.Namespace, hp: dict[str, Any], run_dir: Path) -> in
             raise SystemExit(f"pneunet-grasp train: {flag} must be >= 1, got {value}")
     if args.resume is not None:
         raise SystemExit("pneunet-grasp train: --seeds resumes by itself (run the same command again); drop --resume")
+    force = bool(getattr(args, "force", False))
+    with RunLock(run_dir, command=_command(args, run_dir, hp["seed"]) + f" --seeds {n}", force=force,
+                 what="seed study folder"):  # released on any end; a folder it made and nothing filled is removed
+        return _run_seeds(args, hp, run_dir, force)
+
+
+def _run_seeds(args: argparse.Namespace, hp: dict[str, Any], run_dir: Path, force: bool) -> int:
+    from agents.train import export
+
+    n, jobs, objects = args.seeds, args.jobs, args.objects
     first = hp["seed"]
     seeds = list(range(first, first + n))
     dirs = {s: _seed_dir(run_dir, s) for s in seeds}
     jobs_list = [({**hp, "seed": s}, dirs[s], not args.no_progress and jobs == 1, str(args.config),
-                  _command(args, dirs[s], s)) for s in seeds]
+                  _command(args, dirs[s], s), force) for s in seeds]
     for s in seeds:
         _check_settings(dirs[s], {**hp, "seed": s})
     todo = [s for s in seeds if not _done(dirs[s], {**hp, "seed": s})]
@@ -263,11 +243,17 @@ def run_seeds(args: argparse.Namespace, hp: dict[str, Any], run_dir: Path) -> in
         import multiprocessing as mp
         from concurrent.futures import ProcessPoolExecutor
 
-        with ProcessPoolExecutor(max_workers=min(jobs, len(todo)), mp_context=mp.get_context("spawn")) as pool:
+        pool = ProcessPoolExecutor(max_workers=min(jobs, len(todo)), mp_context=mp.get_context("spawn"),
+                                   initializer=_worker_init)
+        try:
             for s, record in zip(todo, pool.map(_train_job, [jobs_list[seeds.index(s)] for s in todo]), strict=True):
                 records[s] = record
                 print(f"seed {s}: {record['timesteps']} timesteps in {record['total_wall_s']:.0f} s; best evaluation "
                       f"{record['best_eval']}")
+        except BaseException:  # Ctrl-C (or a seed's error): no new seed starts; the running ones end as they do
+            pool.shutdown(wait=True, cancel_futures=True)
+            raise
+        pool.shutdown(wait=True)
     for s, job in zip(seeds, jobs_list, strict=True):
         if s not in records:
             records[s] = train_seed(*job)
@@ -287,7 +273,8 @@ def run_seeds(args: argparse.Namespace, hp: dict[str, Any], run_dir: Path) -> in
         "eval_best_ramp": {str(s): records[s].get("best_ramp_eval_success_rate") for s in seeds},
         "held_out": held_out, "summary": summarise(held_out), "median_seed": median_seed(held_out),
     }
-    path = atomic_write_bytes(run_dir / "seeds.json", (json.dumps(result, indent=1, default=str) + "\n").encode())
+    with deferred_interrupt():
+        path = atomic_write_json(run_dir / "seeds.json", result, default=str)
     png = plot_seeds(result, run_dir / "learning_curves.png")
     groups = list(result["summary"]["trained"])
     print(f"\nheld-out success over {n} seeds ({objects} objects; mean ± std [min, max]):")
@@ -312,11 +299,12 @@ def run_seeds(args: argparse.Namespace, hp: dict[str, Any], run_dir: Path) -> in
         s = result["median_seed"]
         zip_path = export(dirs[s], args.export, records[s])
         meta_path = Path(args.export).with_suffix(".json")
-        meta = json.loads(meta_path.read_text())
+        meta = load_json_file(meta_path, "exported model's sidecar")
         meta["seed_study"] = {
             "chosen": f"the median of {n} seeds by held-out success (all {objects} objects)", "seed": s,
             "held_out": held_out["seeds"][str(s)], "every_seed": held_out["seeds"], "best_ramp": held_out["best_ramp"],
             "summary": result["summary"], "study": str(path)}
-        atomic_write_bytes(meta_path, (json.dumps(meta, indent=1, default=str) + "\n").encode())
+        with deferred_interrupt():
+            atomic_write_json(meta_path, meta, default=str)
         print(f"exported seed {s}'s best evaluation's model (the median seed) to {zip_path}")
     return 0

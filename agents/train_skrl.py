@@ -22,11 +22,13 @@ and the time at which the policy first reached best-ramp's success rate, if it d
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import time
 from pathlib import Path
 from typing import Any
+
+from pneunet_env.arguments import count, integer, output_dir, real
+from pneunet_env.arguments import seed as seed_type
 
 __all__ = ["TorchVecEnvWrapper", "evaluate_success", "train", "add_arguments", "run"]
 
@@ -205,16 +207,19 @@ def train(num_envs: int = 256, device: str = "cpu", minutes: float = 5.0, eval_o
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--device", default="cpu", help="torch device of the env and the agent (cpu, cuda, ...)")
-    parser.add_argument("--num-envs", type=int, default=256, help="parallel envs (default 256; on a GPU: 65536)")
-    parser.add_argument("--minutes", type=float, default=5.0, help="training wall-clock budget (evaluations excluded)")
-    parser.add_argument("--eval-objects", type=int, default=200, help="objects of the seeded evaluation set")
-    parser.add_argument("--eval-every", type=float, default=30.0, help="seconds of training between evaluations")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--num-envs", type=integer(1, 1 << 26, "--num-envs"), default=256,
+                        help="parallel envs (default 256; on a GPU: 65536)")
+    parser.add_argument("--minutes", type=real(0, 1e7, above=True), default=5.0,
+                        help="training wall-clock budget (evaluations excluded)")
+    parser.add_argument("--eval-objects", type=count, default=200, help="objects of the seeded evaluation set")
+    parser.add_argument("--eval-every", type=real(0, 1e9, above=True), default=30.0,
+                        help="seconds of training between evaluations")
+    parser.add_argument("--seed", type=seed_type, default=0)
     parser.add_argument("--compile", action="store_true", help="the env's solver round through torch.compile")
     parser.add_argument("--action", choices=("setpoint", "increment"), default="increment",
                         help="the agent's action: the env's pressure increment (default) or a pressure setpoint")
-    parser.add_argument("--initial-log-std", type=float, default=0.0, help="the policy's initial log std")
-    parser.add_argument("--out", type=Path, default=Path("runs/skrl"), help="output folder (curve.json)")
+    parser.add_argument("--initial-log-std", type=real(-20, 5), default=0.0, help="the policy's initial log std")
+    parser.add_argument("--out", type=output_dir, default=Path("runs/skrl"), help="output folder (curve.json)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -232,8 +237,10 @@ def run(args: argparse.Namespace) -> int:
     res = train(num_envs=args.num_envs, device=args.device, minutes=args.minutes, eval_objects=args.eval_objects,
                 eval_every_s=args.eval_every, seed=args.seed, compile=args.compile, action=args.action,
                 initial_log_std=args.initial_log_std)
-    args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "curve.json").write_text(json.dumps(res, indent=1) + "\n")
+    from pneunet_env.files import atomic_write_json, deferred_interrupt
+
+    with deferred_interrupt():  # whole or not at all (a Ctrl-C before it writes nothing)
+        atomic_write_json(args.out / "curve.json", res)
     r = res["reached_best_ramp"]
     print(f"best-ramp {res['best_ramp_success']:.1%}; final {res['final_success']:.1%}; "
           + (f"reached best-ramp after {r['wall_s']:.0f} s ({r['env_steps']:,} env-steps)" if r

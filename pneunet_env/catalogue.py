@@ -27,9 +27,8 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from pneunet_env.physics.contact import winkler_stiffness
+from pneunet_env.yamlio import load_yaml, load_yaml_file
 
 __all__ = [
     "ObjectClass",
@@ -106,21 +105,16 @@ class UseCase:
 # ---------------------------------------------------------------------------------------------
 
 
-def _read_text(path: str | Path | None) -> tuple[str, str]:
-    """``(text, label)`` of the catalogue file: ``path`` if given, else the packaged ``objects.yaml``."""
-    if path is None:
-        res = resources.files(_PACKAGE).joinpath(_FILENAME)
-        return res.read_text(encoding="utf-8"), f"{_PACKAGE}/{_FILENAME}"
-    p = Path(path)
-    return p.read_text(encoding="utf-8"), str(p)
-
-
 def _load_raw(path: str | Path | None) -> tuple[dict[str, Any], str]:
-    text, label = _read_text(path)
-    try:
-        raw = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        raise ValueError(f"{label}: not valid YAML ({exc})") from None
+    """``(mapping, label)`` of the catalogue file (``path``, else the packaged ``objects.yaml``), read by
+    :mod:`pneunet_env.yamlio`: a duplicated class, use case or field is refused (naming it and its line), numbers read
+    as in every other file, aliases bounded."""
+    if path is None:
+        label = f"{_PACKAGE}/{_FILENAME}"
+        raw = load_yaml(resources.files(_PACKAGE).joinpath(_FILENAME).read_bytes(), label)
+    else:
+        label = str(Path(path))
+        raw = load_yaml_file(path, "catalogue file")
     if not isinstance(raw, dict):
         raise ValueError(f"{label}: the top level must be a mapping with 'classes' and 'use_cases'")
     return raw, label
@@ -232,6 +226,8 @@ def _use_case(name: Any, entry: Any, classes: dict[str, ObjectClass]) -> UseCase
     total = sum(out.values())
     if not total > 0.0:
         raise ValueError(f"use case {name!r}: weights must sum to a positive number, got {total!r}")
+    if not math.isfinite(total):
+        raise ValueError(f"use case {name!r}: the weights sum past the largest float ({out!r}); scale them down")
     unreachable = entry.get("unreachable", [])
     if unreachable is None:
         unreachable = []
@@ -381,15 +377,19 @@ def _class_table(weights: tuple[tuple[str, float], ...]) -> ClassTable:
     import numpy as np
 
     classes = load_catalogue()
-    names = tuple(n for n, w in weights if w > 0.0)
-    for n, _ in weights:
-        if n not in classes:
+    for n, w in weights:
+        if not isinstance(n, str) or n not in classes:
             raise ValueError(f"unknown object class {n!r}; known: {sorted(classes)}")
         if not classes[n].in_annulus_model:
             raise ValueError(f"object class {n!r} lies outside eq. 3.2's annulus model ({classes[n].reason})")
+        if not _is_number(w) or w < 0.0:
+            raise ValueError(f"the weight of object class {n!r} must be a finite number >= 0, got {w!r}")
+    names = tuple(n for n, w in weights if w > 0.0)
     w = np.array([dict(weights)[n] for n in names], dtype=float)
-    if not names or not np.isfinite(w).all() or w.sum() <= 0.0:
-        raise ValueError(f"object class weights must be finite, >= 0 and sum to > 0, got {dict(weights)!r}")
+    if not names:
+        raise ValueError(f"object class weights must not all be zero, got {dict(weights)!r}")
+    if not math.isfinite(sum(float(x) for x in w)):
+        raise ValueError(f"object class weights sum past the largest float ({dict(weights)!r}); scale them down")
 
     def col(field):
         return np.array([getattr(classes[n], field) for n in names], dtype=float).T  # (2, n_classes)

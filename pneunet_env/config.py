@@ -54,6 +54,7 @@ __all__ = [
     "DEFAULT_CONFIG_PATH",
     "RANGE_FIELDS",
     "LOG_UNIFORM_FIELDS",
+    "ConfigTypeError",
 ]
 
 DEFAULT_CONFIG_PATH = Path(__file__).resolve().parents[1] / "configs" / "env" / "default.yaml"
@@ -70,6 +71,48 @@ RANGE_FIELDS = (
 
 LOG_UNIFORM_FIELDS = ("object_shear_modulus_kpa", "object_density_kg_m3")
 """Ranges sampled log-uniformly (the others uniformly)."""
+
+
+class ConfigTypeError(TypeError, ValueError):
+    """A config value of the wrong type (``"no"`` where ``true``/``false`` belongs): a ``TypeError``, and also the
+    ``ValueError`` that :func:`load_config` documents, so that either ``except`` catches it."""
+
+
+def check_bool(name: str, value: Any) -> bool:
+    """``value`` if it is a boolean (Python's or numpy's), as ``bool``; else :class:`ConfigTypeError` naming ``name``
+    (a string such as ``"no"`` or ``"false"`` is refused, never read as true)."""
+    if type(value).__name__ in ("bool", "bool_"):
+        return bool(value)
+    raise ConfigTypeError(f"config key {name!r} must be true or false, got {value!r}")
+
+
+def check_class_weights(name: str, value: Any) -> dict[str, float]:
+    """``{class: weight}`` checked: class names are strings; each weight a finite number >= 0 (not a boolean); not
+    all zero; and their sum finite (``{"apple": 1e308, "kiwifruit": 1e308}`` overflows it). ``ValueError`` (a wrong
+    type: :class:`ConfigTypeError`) naming ``name`` and the class."""
+    if not isinstance(value, Mapping) or not value:
+        raise ConfigTypeError(f"config key {name!r} must be a mapping of class names to weights, or null, got "
+                              f"{value!r}")
+    out: dict[str, float] = {}
+    for k, v in value.items():
+        if not isinstance(k, str):
+            raise ConfigTypeError(f"config key {name!r}: class names must be strings, got {k!r}")
+        if isinstance(v, bool) or not isinstance(v, (int, float)) and not hasattr(v, "__float__"):
+            raise ConfigTypeError(f"config key {name!r}: the weight of {k!r} must be a number, got {v!r}")
+        try:
+            w = float(v)
+        except (TypeError, ValueError, OverflowError):
+            raise ConfigTypeError(f"config key {name!r}: the weight of {k!r} must be a number, got {v!r}") from None
+        if not math.isfinite(w) or w < 0.0:
+            raise ValueError(f"config key {name!r}: the weight of {k!r} must be a finite number >= 0, got {v!r}")
+        out[k] = w
+    total = sum(out.values())
+    if not total > 0.0:
+        raise ValueError(f"config key {name!r}: the weights must not all be zero, got {dict(value)!r}")
+    if not math.isfinite(total):
+        raise ValueError(f"config key {name!r}: the weights sum past the largest float ({dict(value)!r}); scale "
+                         "them down (only their ratios count)")
+    return out
 
 
 @dataclass(frozen=True)
@@ -114,6 +157,10 @@ class ObjectConfig:
     class_weights: dict[str, float] | None = None
 
     def __post_init__(self) -> None:
+        if self.use_case is not None and not isinstance(self.use_case, str):
+            raise ConfigTypeError(f"config key 'use_case' must be a string or null, got {self.use_case!r}")
+        if self.class_weights is not None:
+            object.__setattr__(self, "class_weights", check_class_weights("class_weights", self.class_weights))
         if self.use_case is not None or self.class_weights is not None:
             from pneunet_env.catalogue import class_table, load_use_cases
 
@@ -181,6 +228,8 @@ class TaskConfig:
     damage_rule: str = "hoop_strain"
 
     def __post_init__(self) -> None:
+        for name in BOOL_FIELDS:
+            check_bool(name, getattr(self, name))
         if self.damage_rule not in DAMAGE_RULES:
             raise ValueError(f"config key 'damage_rule' must be one of {DAMAGE_RULES}, got {self.damage_rule!r}")
         for name in ("max_pressure_kpa", "max_pressure_step_kpa", "crush_fraction", "friction_coefficient",
@@ -204,6 +253,9 @@ class TaskConfig:
         """Steps in an episode: ``squeeze_steps + hold_steps`` (then ``truncated``)."""
         return self.squeeze_steps + self.hold_steps
 
+
+BOOL_FIELDS = ("terminate_on_damage", "terminate_on_slip", "observe_volume")
+"""The config's boolean keys (all in :class:`TaskConfig`): ``true`` or ``false``, never a string."""
 
 DAMAGE_RULES = ("hoop_strain", "crush_fraction")
 """The damage rules (:class:`TaskConfig` ``damage_rule``)."""
@@ -377,9 +429,7 @@ def _int(name: str, value: Any, minimum: int = 1) -> int:
 
 
 def _bool(name: str, value: Any) -> bool:
-    if type(value).__name__ in ("bool", "bool_"):  # Python's bool or numpy's
-        return bool(value)
-    raise ValueError(f"config key {name!r} must be true or false, got {value!r}")
+    return check_bool(name, value)
 
 
 def _range(name: str, value: Any) -> tuple[float, float]:
@@ -413,19 +463,7 @@ def _str(name: str, value: Any) -> str:
 
 
 def _weights(name: str, value: Any) -> dict[str, float] | None:
-    if value is None:
-        return None
-    if not isinstance(value, Mapping) or not value:
-        raise ValueError(f"config key {name!r} must be a mapping of class names to weights, or null, got {value!r}")
-    out = {}
-    for k, v in value.items():
-        if not isinstance(k, str):
-            raise ValueError(f"config key {name!r}: class names must be strings, got {k!r}")
-        w = _float(f"{name}[{k!r}]", v)
-        if w < 0.0:
-            raise ValueError(f"config key {name!r}: weight of {k!r} must be >= 0, got {v!r}")
-        out[k] = w
-    return out
+    return None if value is None else check_class_weights(name, value)
 
 
 _CHECKS = {"float": _float, "int": _int, "bool": _bool, "tuple[float, float]": _range, "str | None": _opt_str,
@@ -451,45 +489,12 @@ def _build_section(section: str, values: Mapping[str, Any]):
 # ---- loading -----------------------------------------------------------------------------------------------
 
 
-_FLOAT_12 = (r"^[-+]?(?:\.[0-9]+|[0-9]+(?:\.[0-9]*)?)(?:[eE][-+]?[0-9]+)?$"
-             r"|^[-+]?\.(?:inf|Inf|INF)$|^\.(?:nan|NaN|NAN)$")
-"""YAML 1.2's float: ``1e-11`` is a number (PyYAML follows YAML 1.1, where it is a string without a dot)."""
-
-
-def _yaml_loader():
-    """A safe YAML loader that reads YAML 1.2 floats (``1e-11``) and rejects duplicate keys."""
-    import re
-
-    import yaml
-
-    class Loader(yaml.SafeLoader):
-        pass
-
-    def mapping(loader, node, deep=False):
-        seen = set()
-        for key_node, _ in node.value:
-            key = loader.construct_object(key_node, deep=deep)
-            if key in seen:
-                raise ValueError(f"duplicate key {key!r} (line {key_node.start_mark.line + 1})")
-            seen.add(key)
-        return yaml.SafeLoader.construct_mapping(loader, node, deep=deep)
-
-    Loader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, mapping)
-    Loader.add_implicit_resolver("tag:yaml.org,2002:float", re.compile(_FLOAT_12), list("-+.0123456789"))
-    return Loader
-
-
 def _read_yaml(path: Path) -> dict[str, Any]:
-    import yaml
+    """A config file's mapping (``{}`` if empty), read by :mod:`pneunet_env.yamlio` (duplicate keys refused, YAML 1.1
+    and 1.2 numbers, aliases bounded)."""
+    from pneunet_env.yamlio import load_yaml_file
 
-    try:
-        text = path.read_text()
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ValueError(f"cannot read config file {str(path)!r}: {exc}") from None
-    try:
-        data = yaml.load(text, Loader=_yaml_loader())  # a SafeLoader: no Python objects are built
-    except (yaml.YAMLError, ValueError) as exc:
-        raise ValueError(f"config file {str(path)!r} is not valid: {exc}") from None
+    data = load_yaml_file(path, "config file")
     if data is None:
         return {}
     if not isinstance(data, dict):

@@ -8,13 +8,41 @@ A temporary file left by a hard kill (``.NAME.*.tmp``) is never read by the pack
 
 from __future__ import annotations
 
+import contextlib
 import json
 import os
+import signal
 import tempfile
+import threading
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-__all__ = ["atomic_write_bytes", "atomic_write_json", "atomic_write_text", "save_figure", "stage_file"]
+__all__ = ["atomic_write_bytes", "atomic_write_json", "atomic_write_text", "deferred_interrupt", "save_figure",
+           "stage_file"]
+
+
+@contextlib.contextmanager
+def deferred_interrupt() -> Iterator[None]:
+    """Hold a Ctrl-C (SIGINT) that arrives inside the block until the block ends, then raise ``KeyboardInterrupt``.
+
+    For a few lines that must run whole: a file written to a temporary name and renamed into place (between the
+    temporary file's creation and the ``try`` that removes it on failure, an interrupt would leave it behind), a lock
+    file created or removed. Only in the main thread under Python's default SIGINT handler (where Ctrl-C raises
+    ``KeyboardInterrupt``); nested, the outermost block holds it; elsewhere the block runs as it is.
+    """
+    if (threading.current_thread() is not threading.main_thread()
+            or signal.getsignal(signal.SIGINT) is not signal.default_int_handler):
+        yield
+        return
+    caught: list[int] = []
+    signal.signal(signal.SIGINT, lambda signum, frame: caught.append(signum))
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+        if caught:
+            raise KeyboardInterrupt
 
 
 def _umask() -> int:
@@ -29,8 +57,9 @@ def stage_file(final: str | Path, content: bytes | Path, suffix: str = ".tmp") -
     file's usual ones if ``final`` does not exist). The caller renames it into place or deletes it."""
     final = Path(final)
     final.parent.mkdir(parents=True, exist_ok=True)
-    fd, name = tempfile.mkstemp(dir=final.parent, prefix=f".{final.name}.", suffix=suffix)
-    tmp = Path(name)
+    with deferred_interrupt():  # a Ctrl-C between mkstemp and the try would leave the temporary file behind
+        fd, name = tempfile.mkstemp(dir=final.parent, prefix=f".{final.name}.", suffix=suffix)
+        tmp = Path(name)
     try:
         with os.fdopen(fd, "wb") as out:
             if isinstance(content, Path):
@@ -52,12 +81,13 @@ def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
     """Write ``data`` to ``path`` through a temporary file in the same folder and ``os.replace``: a reader (or a
     failure half-way) sees the old file or the new one, never a truncated one."""
     path = Path(path)
-    tmp = stage_file(path, data)
-    try:
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
+    with deferred_interrupt():  # staged and renamed whole: a Ctrl-C here waits the few milliseconds it takes
+        tmp = stage_file(path, data)
+        try:
+            os.replace(tmp, path)
+        except BaseException:
+            tmp.unlink(missing_ok=True)
+            raise
     return path
 
 
@@ -80,9 +110,10 @@ def save_figure(fig: Any, path: str | Path, *, dpi: int = 120, close: bool = Tru
     """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=".tmp" + (path.suffix or ".png"))
-    os.close(fd)
-    tmp = Path(name)
+    with deferred_interrupt():  # a Ctrl-C between mkstemp and the try would leave the temporary file behind
+        fd, name = tempfile.mkstemp(dir=path.parent, prefix=f".{path.stem}.", suffix=".tmp" + (path.suffix or ".png"))
+        os.close(fd)
+        tmp = Path(name)
     try:
         fig.savefig(tmp, dpi=dpi, format=(path.suffix.lstrip(".") or "png"), **kwargs)
         os.chmod(tmp, 0o666 & ~_umask())

@@ -8,27 +8,59 @@ task's rules (:func:`pneunet_env.task.make_rules`, compiled) and the observation
 solve, the contact and the rules are the package's own formulas, compiled here. Only the per-env bookkeeping that
 the array form does with ``where`` is a branch.
 
+The loop takes records: the state's (:class:`~pneunet_env.physics.solver.Equilibrium`,
+:class:`~pneunet_env.task.Thresholds`, :class:`~pneunet_env.task.TaskState` of ``(N,)`` arrays), the task's params
+(:class:`~pneunet_env.task.TaskParams`, numbers, as the rules read them) and its outputs (:class:`Outputs`). Inside,
+the arrays are bound to names before the parallel loop: numba's parallel loop can neither take a record of arrays
+nor keep the writes made through one (numba 0.68; the tests compare the parallel loop with the serial one).
+
 The result is a :class:`pneunet_env.task.Step`, bit for bit the one :func:`pneunet_env.task.step` gives with
 :func:`pneunet_env.task.newton_contact_batch` (the same compiled scalar solve, the same operations in the same
-order; tested), so the env's info, autoreset and seeding are unchanged.
+order; tested), so the env's info, autoreset and seeding are unchanged. Only the work differs, and the solve's
+``evaluations`` says so: with the cache (see :func:`fused_step`) a step starts from the evaluation its last step
+ended on, and where the pressure did not change and that start is a converged minimum (the descent's own test) the
+solve is skipped, its result being the start itself, as the continuation would return it.
 """
 
 from __future__ import annotations
 
+import math
 import sys
+from typing import Any, NamedTuple
 
 import numpy as np
 
-from pneunet_env import task
-from pneunet_env.physics import _jit, batched, contact, mechanics
+from pneunet_env import task, task_objects
+from pneunet_env.physics import _jit, batched, contact, mechanics, xp
 from pneunet_env.physics import solver as _solver
 from pneunet_env.physics._jit import HAVE_NUMBA
-from pneunet_env.physics.solver import Equilibrium, _evaluate, step_state_from
+from pneunet_env.physics.mechanics import Evaluation
+from pneunet_env.physics.solver import (
+    STATUS_CONVERGED,
+    Continuation,
+    Equilibrium,
+    _evaluate,
+    step_state_from,
+    sym2_eigvals,
+)
+from pneunet_env.task import TaskState, Touch
+from pneunet_env.task_objects import Thresholds
 
-__all__ = ["HAVE_FUSED", "fused_step"]
+__all__ = ["HAVE_FUSED", "fused_step", "Outputs", "new_cache"]
 
 HAVE_FUSED = HAVE_NUMBA
 """Whether the fused step is available (it needs numba)."""
+
+
+class Outputs(NamedTuple):
+    """The arrays the fused loop writes, env by env (``(N,)``; the observation ``(N, 1)`` or ``(N, 2)``)."""
+
+    command: np.ndarray  # the new command (the previous one where the solve failed)
+    solve: Equilibrium  # the step's solve (its object fields are copies of the object's, not written by the loop)
+    failed: np.ndarray
+    clipped: np.ndarray
+    outcome: task.Outcome
+    obs: np.ndarray
 
 
 def _flag_value(flag):
@@ -38,65 +70,139 @@ def _flag_value(flag):
 
 def _make_loop(stamp: int, variant: int):
     # stamp and variant key numba's on-disk cache (see physics.batched._make_loop).
-    def _loop(action, command, k, s, p_eq, kobj, ko, eq_force, eq_delta, eq_touch, eq_dv, failure, crush, grip,
-              step0, damaged0, dropped0, peak0, prm, opts, tp, ev_cache, ev_valid,
-              o_p, o_k, o_s, o_top, o_force, o_delta, o_touch, o_dv, o_U, o_gn, o_lmin, o_conv, o_it, o_sub, o_snap,
-              o_status, o_command, o_failed, o_clipped, o_step, o_damaged, o_dropped, o_peak, o_in_hold, o_over,
-              o_crushed, o_dmg_event, o_slipping, o_drop_event, o_held, o_terminated, o_truncated, o_success,
-              o_reward, o_obs):
+    def _loop(action, command, eq, kobj, ko, thresholds, state, tp, volume_scale, prm, opts, ev_cache, ev_valid, out):
         if stamp < 0 or variant < 0:
             return
-        (dp, p_max, squeeze, episode, r_hold, r_success, pen_damage, pen_slip, term_damage, term_slip,
-         volume_scale) = tp
-        for i in numba.prange(k.shape[0]):
+        # The arrays, by name, one assignment each (see the module: no records of arrays in the parallel loop).
+        k_in = eq.curvature
+        s_in = eq.side_strain
+        p_in = eq.pressure
+        force_in = eq.contact_force
+        delta_in = eq.indentation
+        touch_in = eq.in_contact
+        dv_in = eq.volume_change
+        failure = thresholds.failure_traction
+        crush = thresholds.crush_indentation
+        grip = thresholds.grip_traction
+        step0 = state.step
+        damaged0 = state.damaged
+        dropped0 = state.dropped
+        peak0 = state.peak_force
+        solve = out.solve
+        o_p = solve.pressure
+        o_k = solve.curvature
+        o_s = solve.side_strain
+        o_top = solve.top_strain
+        o_force = solve.contact_force
+        o_delta = solve.indentation
+        o_touch = solve.in_contact
+        o_dv = solve.volume_change
+        o_energy = solve.energy
+        o_gn = solve.gradient_norm
+        o_lmin = solve.min_eigenvalue
+        o_conv = solve.converged
+        o_it = solve.iterations
+        o_sub = solve.substeps
+        o_snap = solve.snapped
+        o_status = solve.status
+        o_evals = solve.evaluations
+        o_backs = solve.backtracks
+        outcome = out.outcome
+        o_step = outcome.state.step
+        o_damaged = outcome.state.damaged
+        o_dropped = outcome.state.dropped
+        o_peak = outcome.state.peak_force
+        o_in_hold = outcome.in_hold
+        o_over = outcome.overstressed
+        o_crushed = outcome.crushed
+        o_damage_event = outcome.damage_event
+        o_slipping = outcome.slipping
+        o_drop_event = outcome.drop_event
+        o_held = outcome.held
+        o_terminated = outcome.terminated
+        o_truncated = outcome.truncated
+        o_success = outcome.success
+        o_reward = outcome.reward
+        o_command = out.command
+        o_failed = out.failed
+        o_clipped = out.clipped
+        o_obs = out.obs
+        gtol = opts[0]  # SolverOptions.as_tuple(): the gradient tolerance first
+        for i in numba.prange(action.shape[0]):
             a = action[i]
             o_clipped[i] = a < -1.0 or a > 1.0
             a = min(max(a, -1.0), 1.0)
-            p = min(max(command[i] + a * dp, 0.0), p_max)
-            c = ev_cache[i]
+            p = min(max(command[i] + a * tp.pressure_step, 0.0), tp.pressure_max)
+            c = ev_cache[i]  # the row of the evaluation cache: the kernel's Evaluation, the flag as 0/1
+            n_start = 0  # the start's evaluation: cached, or made here
             if ev_valid[i]:  # the evaluation at (k, s, p_eq) that the last step ended on
-                ev0 = (c[0] != 0.0, c[1], c[2], c[3], c[4], c[5], c[6], c[7], c[8], c[9])
+                ev0 = Evaluation(c[0] != 0.0, c[1], c[2], c[3], c[4], c[5], c[6], c[7], c[8], c[9])
             else:
-                ev0 = _evaluate(k[i], s[i], p_eq[i], prm, kobj[i], ko[i])
-            r = step_state_from(k[i], s[i], p_eq[i], p, prm, kobj[i], ko[i], opts, ev0)
-            delta, force, touch = _contact(r[0], kobj[i], ko[i])
-            status = r[8]
-            conv = status >= 0 and status <= 1
+                ev0 = _evaluate(k_in[i], s_in[i], p_in[i], prm, kobj[i], ko[i])
+                n_start = 1
+            # Where the pressure did not change and the start is a converged minimum (the descent's own test, on
+            # its own numbers), the continuation would return the start unchanged with no work: skip the call.
+            skip = False
+            if p == p_in[i] and ev0.ok:
+                gn0 = math.hypot(ev0.g_kappa, ev0.g_strain)
+                lmin0 = sym2_eigvals(ev0.h_kk, ev0.h_ks, ev0.h_ss)[0]
+                skip = gn0 <= gtol and lmin0 > 0.0
+            if skip:
+                r = Continuation(k_in[i], s_in[i], ev0.energy, gn0, lmin0, 0, 0, False, STATUS_CONVERGED,
+                                 ev0.volume_change, 0, 0, ev0)
+            else:
+                r = step_state_from(k_in[i], s_in[i], p_in[i], p, prm, kobj[i], ko[i], opts, ev0)
+            delta, force, touch = _contact(r.kappa, kobj[i], ko[i])
+            conv = r.status >= 0 and r.status <= 1
             o_p[i] = p
-            o_k[i] = r[0]
-            o_s[i] = r[1]
-            o_top[i] = prm[0] * (1.0 + r[1]) * r[0]
+            o_k[i] = r.kappa
+            o_s[i] = r.side_strain
+            o_top[i] = prm.chamber_height * (1.0 + r.side_strain) * r.kappa
             o_force[i] = force
             o_delta[i] = delta
             o_touch[i] = touch
-            o_dv[i] = r[9]
-            o_U[i] = r[2]
-            o_gn[i] = r[3]
-            o_lmin[i] = r[4]
+            o_dv[i] = r.volume_change
+            o_energy[i] = r.energy
+            o_gn[i] = r.gradient_norm
+            o_lmin[i] = r.min_eigenvalue
             o_conv[i] = conv
-            o_it[i] = r[5]
-            o_sub[i] = r[6]
-            o_snap[i] = r[7]
-            o_status[i] = status
+            o_it[i] = r.iterations
+            o_sub[i] = r.substeps
+            o_snap[i] = r.snapped
+            o_status[i] = r.status
+            o_evals[i] = n_start + r.evaluations
+            o_backs[i] = r.backtracks
             failed = not conv
             o_failed[i] = failed
             if not failed:  # the new state's evaluation, for the next step (a failed step keeps the state and its own)
-                ev = r[10]
-                c[0] = 1.0 if ev[0] else 0.0
-                c[1], c[2], c[3], c[4], c[5], c[6], c[7], c[8], c[9] = ev[1], ev[2], ev[3], ev[4], ev[5], ev[6], \
-                    ev[7], ev[8], ev[9]
+                ev = r.evaluation
+                c[0] = 1.0 if ev.ok else 0.0
+                c[1], c[2], c[3], c[4], c[5] = ev.energy, ev.g_kappa, ev.g_strain, ev.h_kk, ev.h_ks
+                c[6], c[7], c[8], c[9] = ev.h_ss, ev.volume_change, ev.v_kappa, ev.v_strain
                 ev_valid[i] = True
             if failed:  # the previous state (and command) is kept
-                p, force, delta, touch, dv = command[i], eq_force[i], eq_delta[i], eq_touch[i], eq_dv[i]
+                p, force, delta, touch, dv = command[i], force_in[i], delta_in[i], touch_in[i], dv_in[i]
             else:
-                dv = r[9]
+                dv = r.volume_change
             o_command[i] = p
-            (o_step[i], o_damaged[i], o_dropped[i], o_peak[i], o_in_hold[i], o_over[i], o_crushed[i], o_dmg_event[i],
-             o_slipping[i], o_drop_event[i], o_held[i], o_terminated[i], o_truncated[i], o_success[i],
-             o_reward[i]) = _rules(step0[i], damaged0[i], dropped0[i], peak0[i], force, delta, touch, failure[i],
-                                   crush[i], grip[i], failed, squeeze, episode, r_hold, r_success, pen_damage,
-                                   pen_slip, term_damage, term_slip)
-            o_obs[i, 0] = p / p_max
+            o = _rules(TaskState(step0[i], damaged0[i], dropped0[i], peak0[i]), Touch(force, delta, touch),
+                       Thresholds(failure[i], crush[i], grip[i]), failed, tp)
+            o_step[i] = o.state.step
+            o_damaged[i] = o.state.damaged
+            o_dropped[i] = o.state.dropped
+            o_peak[i] = o.state.peak_force
+            o_in_hold[i] = o.in_hold
+            o_over[i] = o.overstressed
+            o_crushed[i] = o.crushed
+            o_damage_event[i] = o.damage_event
+            o_slipping[i] = o.slipping
+            o_drop_event[i] = o.drop_event
+            o_held[i] = o.held
+            o_terminated[i] = o.terminated
+            o_truncated[i] = o.truncated
+            o_success[i] = o.success
+            o_reward[i] = o.reward
+            o_obs[i, 0] = p / tp.pressure_max
             if volume_scale > 0.0:
                 o_obs[i, 1] = dv / volume_scale
 
@@ -106,19 +212,37 @@ def _make_loop(stamp: int, variant: int):
 if HAVE_NUMBA:
     import numba
 
-    _contact = contact.make_contact(_jit.njit(mechanics._smax), _jit.njit(mechanics._swhere), jit=_jit.njit)[1]
-    _rules = task.make_rules(_jit.njit(_flag_value), _jit.njit(mechanics._smax), jit=_jit.njit)
+    _contact = contact.make_contact(_jit.njit(xp.scalar_max), _jit.njit(xp.scalar_where), jit=_jit.njit)[1]
+    _rules = task.make_rules(_jit.njit(_flag_value), _jit.njit(xp.scalar_max), jit=_jit.njit)
     _loop_serial, _loop_parallel = batched.compile_loops(
-        _make_loop, (mechanics, contact, _solver, _jit, task, sys.modules[__name__]))
+        _make_loop, (mechanics, contact, _solver, _jit, xp, task, task_objects, sys.modules[__name__]))
 
 
-EV_FIELDS = 10
-"""Floats per env of the evaluation cache (:func:`new_cache`): the energy kernel's 10-tuple, the flag as 0/1."""
+EV_FIELDS = len(Evaluation._fields)
+"""Floats per env of the evaluation cache (:func:`new_cache`): the energy kernel's :class:`Evaluation`, the flag as
+0/1."""
 
 
 def new_cache(n: int) -> tuple[np.ndarray, np.ndarray]:
     """An empty evaluation cache for ``n`` envs: ``(values (n, 10), valid (n,))``; see :func:`fused_step`."""
     return np.zeros((n, EV_FIELDS)), np.zeros(n, bool)
+
+
+def _empty(record_type, n: int, dtypes: dict[str, Any]):
+    """A record of ``n`` uninitialised entries per field (float64 unless ``dtypes`` names another)."""
+    return record_type(*(np.empty(n, dtypes.get(f, np.float64)) for f in record_type._fields))
+
+
+_SOLVE_DTYPES = {"in_contact": bool, "converged": bool, "snapped": bool, "iterations": np.int64, "substeps": np.int64,
+                 "status": np.int64, "evaluations": np.int64, "backtracks": np.int64}
+_OUTCOME_DTYPES = {f: bool for f in task.Outcome._fields if f != "reward"}
+_STATE_DTYPES = {"step": np.int64, "damaged": bool, "dropped": bool}
+
+
+def _loop_params(tp: task.TaskParams) -> task.TaskParams:
+    """The task's params as the compiled loop takes them: numbers only. The namespace and the strings (the damage
+    rule, used at reset) become ``None``: a string would be reference-counted in every env's call of the rules."""
+    return tp._replace(ops=None, **{f: None for f, v in zip(tp._fields, tp, strict=True) if isinstance(v, str)})
 
 
 def fused_step(state: task.EnvState, action: np.ndarray, params: task.EnvParams, parallel: bool | None = None,
@@ -139,35 +263,19 @@ def fused_step(state: task.EnvState, action: np.ndarray, params: task.EnvParams,
     if not HAVE_FUSED:
         raise RuntimeError("the fused step needs numba (pip install pneunet-env[fast])")
     n = action.shape[0]
-    eq, obj, th, ts, tp = state.eq, state.obj, state.thresholds, state.task, params.task
-    f8 = [np.empty(n) for _ in range(10)]  # p, k, s, top, force, delta, dv, U, gn, lmin
-    p1, k1, s1, top, force, delta, dv, U, gn, lmin = f8
-    touch, conv, snap, failed, clipped = (np.empty(n, bool) for _ in range(5))
-    it, sub, status = (np.empty(n, np.int64) for _ in range(3))
-    command = np.empty(n)
-    t_step = np.empty(n, np.int64)
-    t_damaged, t_dropped = np.empty(n, bool), np.empty(n, bool)
-    t_peak = np.empty(n)
-    flags = [np.empty(n, bool) for _ in range(10)]  # in_hold .. success
-    reward = np.empty(n)
-    vscale = params.volume_scale
-    obs = np.empty((n, 1 if vscale is None else 2), np.float32)
-    consts = (float(tp.pressure_step), float(tp.pressure_max), int(tp.squeeze_steps),
-              int(tp.squeeze_steps + tp.hold_steps), float(tp.reward_hold), float(tp.reward_success),
-              float(tp.penalty_damage), float(tp.penalty_slip), bool(tp.terminate_on_damage),
-              bool(tp.terminate_on_slip), 0.0 if vscale is None else float(vscale))
+    obj, vscale = state.obj, params.volume_scale
+    solve = _empty(Equilibrium, n, _SOLVE_DTYPES)._replace(object_stiffness=obj.stiffness.copy(),
+                                                           object_curvature=obj.curvature.copy())
+    outcome = _empty(task.Outcome, n, _OUTCOME_DTYPES)._replace(state=_empty(TaskState, n, _STATE_DTYPES))
+    out = Outputs(np.empty(n), solve, np.empty(n, bool), np.empty(n, bool), outcome,
+                  np.empty((n, 1 if vscale is None else 2), np.float32))
     ev_cache, ev_valid = new_cache(n) if cache is None else cache
-    args = (action, state.command, eq.curvature, eq.side_strain, eq.pressure, obj.stiffness, obj.curvature,
-            eq.contact_force, eq.indentation, eq.in_contact, eq.volume_change, th.failure_traction,
-            th.crush_indentation, th.grip_traction, ts.step, ts.damaged, ts.dropped, ts.peak_force, params.actuator,
-            params.solver, consts, ev_cache, ev_valid, p1, k1, s1, top, force, delta, touch, dv, U, gn, lmin, conv, it,
-            sub, snap, status, command, failed, clipped, t_step, t_damaged, t_dropped, t_peak, *flags, reward, obs)
+    args = (action, state.command, state.eq, obj.stiffness, obj.curvature, state.thresholds, state.task,
+            _loop_params(params.task), 0.0 if vscale is None else float(vscale), params.actuator, params.solver,
+            ev_cache, ev_valid, out)
     batched.run_loop(_loop_serial, _loop_parallel, args, n, parallel, threads)
-    solve = Equilibrium(p1, k1, s1, top, force, delta, touch, dv, U, gn, lmin, conv, it, sub, snap, status,
-                        obj.stiffness.copy(), obj.curvature.copy())
-    new_eq = task._keep_where(failed, eq, solve)
-    in_hold, overstressed, crushed, damage_event, slipping, drop_event, held, terminated, truncated, success = flags
-    outcome = task.Outcome(task.TaskState(t_step, t_damaged, t_dropped, t_peak), in_hold, overstressed, crushed,
-                           damage_event, slipping, drop_event, held, terminated, truncated, success, reward)
-    new = task.EnvState(command, new_eq, state.obj, state.thresholds, outcome.state)
-    return task.Step(new, obs, reward, terminated, truncated, solve, outcome, clipped, failed)
+    # the previous state where the solve failed (host arrays: looking whether any did costs no device sync)
+    new_eq = task._keep_where(out.failed, state.eq, solve, params.ops) if out.failed.any() else solve
+    new = task.EnvState(out.command, new_eq, obj, state.thresholds, outcome.state)
+    return task.Step(new, out.obs, outcome.reward, outcome.terminated, outcome.truncated, solve, outcome,
+                     out.clipped, out.failed)

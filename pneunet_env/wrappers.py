@@ -63,7 +63,13 @@ def setpoint_step_fraction(config) -> float:
 
 
 def _check_step_fraction(value: Any) -> float:
-    x = float(value)
+    """``value`` as a float in ``(0, 1]``; ``TypeError``/``ValueError`` naming ``step_fraction`` otherwise."""
+    if value is None or isinstance(value, (bool, np.bool_, str, bytes)):
+        raise TypeError(f"step_fraction must be a number in (0, 1], got {value!r}")
+    try:
+        x = float(value)
+    except (TypeError, ValueError, OverflowError):
+        raise TypeError(f"step_fraction must be a number in (0, 1], got {value!r}") from None
     if not 0.0 < x <= 1.0:
         raise ValueError(f"step_fraction must be in (0, 1], got {value!r}")
     return x

@@ -321,3 +321,43 @@ def test_nothing_is_printed(capsys, tmp_path):
         load_catalogue(_write(tmp_path, _bad(_drop("sources"))))
     out, err = capsys.readouterr()
     assert out == "" and err == ""
+
+
+def test_a_duplicated_class_or_field_is_refused_naming_it_and_its_line(tmp_path):
+    """Before: PyYAML kept the second entry of a duplicated class name, silently."""
+    import json
+
+    text = yaml.safe_dump(json.loads(json.dumps(_GOOD)), sort_keys=False)  # no shared lists: no anchors
+    first = text.index("  test_gel:")
+    block = text[first:text.index("  test_foam:")]
+    path = tmp_path / "objects.yaml"
+    path.write_text(text.replace(block, block + block.replace("a test gel", "a second gel")), encoding="utf-8")
+    with pytest.raises(ValueError, match=r"objects\.yaml', line \d+, column \d+: duplicate key 'test_gel' \(first at"):
+        load_catalogue(path)
+    path.write_text(text.replace("  test_gel:\n", "  test_gel:\n    in_annulus_model: false\n", 1), encoding="utf-8")
+    with pytest.raises(ValueError, match="duplicate key 'in_annulus_model'"):
+        load_catalogue(path)
+
+
+def test_catalogue_numbers_read_as_in_every_other_file(tmp_path):
+    """``3e3`` is a number here as in an env config (PyYAML alone read it as a string, refused as 'not numbers')."""
+    doc = copy.deepcopy(_GOOD)
+    path = tmp_path / "objects.yaml"
+    text = yaml.safe_dump(doc, sort_keys=False).replace("- 3.75\n", "- 3.75e0\n")
+    path.write_text(text, encoding="utf-8")
+    assert load_catalogue(path)["test_gel"].thickness_mm[0] == 3.75
+
+
+def test_use_case_weights_that_overflow_are_refused(tmp_path):
+    path = _write(tmp_path, _bad(_weights({"test_gel": 1e308, "test_foam": 0.0}, unreachable=())))
+    assert load_catalogue(path)  # one huge weight is fine
+    doc = _bad(_weights({"test_gel": 1e308}))
+    doc["classes"]["test_gel2"] = dict(_GOOD_CLASS)
+    doc["use_cases"]["bench"]["weights"]["test_gel2"] = 1e308
+    with pytest.raises(ValueError, match="'bench': the weights sum past the largest float"):
+        load_catalogue(_write(tmp_path, doc))
+
+
+def test_a_missing_catalogue_file_is_a_named_value_error(tmp_path):
+    with pytest.raises(ValueError, match=r"cannot read catalogue file '.*nowhere\.yaml'"):
+        load_catalogue(tmp_path / "nowhere.yaml")

@@ -185,3 +185,62 @@ def test_malformed_yaml_names_the_file(tmp_path):
     path.write_text("task: [1, 2\n")
     with pytest.raises(ValueError, match="bad.yaml"):
         load_config(path)
+
+
+# ---------------------------------------------------------------------------------------------
+# Class weights and booleans (issue 21): refused by name, never silently wrong
+# ---------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("weights, match", [
+    ({"apple": 1e308, "kiwifruit": 1e308}, "sum past the largest float"),  # was accepted: apples drawn 0 %
+    ({"apple": 0.0, "kiwifruit": 0.0}, "must not all be zero"),
+    ({"apple": float("nan"), "kiwifruit": 1.0}, "'apple' must be a finite number"),
+    ({"apple": float("inf")}, "'apple' must be a finite number"),
+    ({"apple": -1.0, "kiwifruit": 1.0}, "'apple' must be a finite number >= 0"),
+    ({"apple": True}, "'apple' must be a number"),
+    ({"apple": "1"}, "'apple' must be a number"),
+])
+def test_bad_class_weights_are_refused_by_name(weights, match):
+    with pytest.raises(ValueError, match=match) as info:
+        load_config(class_weights=weights)
+    assert "class_weights" in str(info.value)
+    # the same through the section's own constructor (which used to drop a NaN or negative weight silently)
+    from pneunet_env.config import ObjectConfig
+
+    with pytest.raises(ValueError, match="class_weights"):
+        ObjectConfig(class_weights=weights)
+
+
+def test_class_table_refuses_overflowing_and_invalid_weights():
+    from pneunet_env.catalogue import class_table
+
+    with pytest.raises(ValueError, match="sum past the largest float"):
+        class_table((("apple", 1e308), ("kiwifruit", 1e308)))
+    with pytest.raises(ValueError, match="'apple' must be a finite number >= 0"):
+        class_table((("apple", float("nan")), ("kiwifruit", 1.0)))
+    with pytest.raises(ValueError, match="'apple' must be a finite number >= 0"):
+        class_table((("apple", -1.0), ("kiwifruit", 1.0)))
+    # large weights that do not overflow draw by their ratio
+    table = class_table((("apple", 1e307), ("kiwifruit", 3e307)))
+    assert table.cumulative[0] == pytest.approx(0.25)
+
+
+@pytest.mark.parametrize("key", ["terminate_on_damage", "terminate_on_slip", "observe_volume"])
+@pytest.mark.parametrize("value", ["no", "false", "False", "0", 0, 1, None])
+def test_boolean_keys_refuse_strings_and_numbers_by_name(key, value):
+    from pneunet_env.config import ConfigTypeError, TaskConfig
+
+    with pytest.raises(TypeError, match=f"config key '{key}' must be true or false"):
+        load_config(**{key: value})
+    with pytest.raises(ValueError, match=key):  # also the ValueError load_config documents
+        load_config(**{key: value})
+    with pytest.raises(ConfigTypeError, match=key):  # the dataclass itself: "no" used to be accepted, as true
+        TaskConfig(**{key: value})
+
+
+def test_use_case_must_be_a_string():
+    from pneunet_env.config import ObjectConfig
+
+    with pytest.raises(TypeError, match="'use_case' must be a string or null"):
+        ObjectConfig(use_case=["kitchen"])

@@ -2,19 +2,24 @@
 
 from __future__ import annotations
 
+import dataclasses
 import math
+import re
 
 import numpy as np
 import pytest
 
 from pneunet_env import PAPER_TASK, task
-from pneunet_env.config import load_config
+from pneunet_env.config import EnvConfig, TaskConfig, load_config
 from pneunet_env.objects import GraspObject, stiffness_per_modulus
+from pneunet_env.physics._jit import HAVE_NUMBA
 from pneunet_env.physics.solver import Equilibrium
 from pneunet_env.physics.units import PAPER_MODULUS_PER_STIFFNESS_PA, object_stiffness_from_material
+from pneunet_env.physics.xp import NUMPY
 
 CFG = load_config(**PAPER_TASK)  # ranges and the crush-fraction rule: the paper's task
-TP = task.TaskParams.from_config(CFG)
+TP = task.TaskParams.from_config(CFG)  # one env: Python scalars
+TP_NP = task.TaskParams.from_config(CFG, NUMPY)  # a batch: numpy arrays
 
 
 # ---- the object -------------------------------------------------------------------------------------
@@ -159,12 +164,12 @@ def test_update_pressure_batch_equals_scalars():
     rng = np.random.default_rng(0)
     p = rng.uniform(0, TP.pressure_max, 200)
     a = rng.uniform(-2, 2, 200)
-    pb, cb = task.update_pressure(p, a, TP)
+    pb, cb = task.update_pressure(p, a, TP_NP)
     for i in range(200):
         ps, cs = task.update_pressure(p[i], a[i], TP)
         assert pb[i] == ps and cb[i] == cs
     with pytest.raises(ValueError, match="finite"):
-        task.update_pressure(p, np.where(np.arange(200) == 7, np.nan, a), TP)
+        task.update_pressure(p, np.where(np.arange(200) == 7, np.nan, a), TP_NP)
 
 
 # ---- rules and reward ------------------------------------------------------------------------------------
@@ -178,7 +183,7 @@ def _run(forces, indentations=None, params=TP, failed=None):
     outs = []
     for i, F in enumerate(forces):
         d = 0.0 if indentations is None else indentations[i]
-        out = task.transition(st, F, d, F > 0 or d > 0, THR, bool(failed and failed[i]), params)
+        out = task.transition(st, task.Touch(F, d, F > 0 or d > 0), THR, bool(failed and failed[i]), params)
         st = out.state
         outs.append(out)
         if out.terminated or out.truncated:
@@ -207,7 +212,7 @@ def test_damage_is_penalised_and_terminates():
 
 def test_indentation_without_contact_is_not_damage():
     st = task.initial_state()
-    out = task.transition(st, 0.0, 10.0, False, THR, False, TP)
+    out = task.transition(st, task.Touch(0.0, 10.0, False), THR, False, TP)
     assert not out.crushed and not out.terminated
 
 
@@ -247,11 +252,11 @@ def test_transition_batch_equals_scalars():
     thr = task.Thresholds(10 ** rng.uniform(-2, 0, n), rng.uniform(0.5, 3, n), 10 ** rng.uniform(-4, -2, n))
     st = task.TaskState(rng.integers(0, TP.episode_steps, n), rng.random(n) < 0.1, rng.random(n) < 0.1,
                         rng.uniform(0, 1e-2, n))
-    batch = task.transition(st, F, d, contact, thr, failed, TP)
+    batch = task.transition(st, task.Touch(F, d, contact), thr, failed, TP_NP)
     for i in range(n):
         one = task.transition(
             task.TaskState(int(st.step[i]), bool(st.damaged[i]), bool(st.dropped[i]), float(st.peak_force[i])),
-            float(F[i]), float(d[i]), bool(contact[i]),
+            task.Touch(float(F[i]), float(d[i]), bool(contact[i])),
             task.Thresholds(*(float(x[i]) for x in thr)), bool(failed[i]), TP,
         )
         for name in task.Outcome._fields:
@@ -265,7 +270,7 @@ def test_transition_batch_equals_scalars():
 def test_observation_shapes_and_freshness():
     o = task.observation(0.6, 3.0, TP)
     assert o.shape == (1,) and o.dtype == np.float32 and o[0] == pytest.approx(0.5)
-    o2 = task.observation(np.array([0.6, 1.2]), np.array([3.0, 6.0]), TP, volume_scale=6.0)
+    o2 = task.observation(np.array([0.6, 1.2]), np.array([3.0, 6.0]), TP_NP, volume_scale=6.0)
     assert o2.shape == (2, 2) and o2.dtype == np.float32
     np.testing.assert_allclose(o2, [[0.5, 0.5], [1.0, 1.0]])
     assert task.observation(0.6, 3.0, TP) is not o
@@ -283,10 +288,11 @@ def test_build_info_batch_equals_scalars(level):
         gradient_norm=rng.uniform(0, 1e-12, n), min_eigenvalue=rng.uniform(1, 2, n), converged=np.ones(n, bool),
         iterations=rng.integers(0, 10, n), substeps=rng.integers(0, 10, n), snapped=rng.random(n) < 0.5,
         status=np.zeros(n, np.int64), object_stiffness=obj.stiffness, object_curvature=obj.curvature,
+        evaluations=rng.integers(0, 10, n), backtracks=rng.integers(0, 3, n),
     )
     thr = task.object_thresholds(obj, TP)
-    state = task.EnvState(eq.pressure, eq, obj, thr, task.initial_state((n,)))
-    info = task.build_info(state, TP, None, level)
+    state = task.EnvState(eq.pressure, eq, obj, thr, task.initial_state(NUMPY, eq.pressure))
+    info = task.build_info(state, TP_NP, None, level)
     for i in range(n):
         eqi = Equilibrium(*(v[i].item() for v in eq))
         obji = GraspObject.from_material(obj.shear_modulus_kpa[i], 10.0, 4.0)
@@ -296,3 +302,130 @@ def test_build_info_batch_equals_scalars(level):
         for key, value in one.items():
             assert np.ravel(info[key])[i if np.ndim(info[key]) else 0] == pytest.approx(value), key
     assert np.all(info["indentation_mm"][~eq.in_contact] == 0.0)
+
+
+# ---- one array path, records, a new reward term ------------------------------------------------------------------
+
+
+def test_the_step_has_one_path_on_every_namespace():
+    """No function of the step tests the type of its input: the namespace is the params' (``TaskParams.ops``)."""
+    import inspect
+
+    from pneunet_env import actions, info
+
+    forbidden = (r"\bis_torch\b", r"\bops_for\b", r"np\.ndarray", r"np\.ndim", r"np\.bool_", r"(?<!\.)\bto_host\(")
+    sources = {"task": inspect.getsource(task), "info": inspect.getsource(info),
+               "update_pressure": inspect.getsource(actions.update_pressure)}
+    for name, src in sources.items():
+        assert not [w for w in forbidden if re.search(w, src)], name
+    assert task.EnvParams.from_config(CFG).ops.name == "scalar"
+    assert task.EnvParams.from_config(CFG, NUMPY).task.ops is NUMPY
+
+
+def test_task_params_hold_every_field_of_the_task_section():
+    """Every config field reaches the params (and the rules) by name; the damage rule is the config's."""
+    for f in dataclasses.fields(TaskConfig):
+        assert getattr(TP, f.name) == getattr(CFG.task, f.name), f.name
+    assert task.TaskParams.from_config(EnvConfig()).damage_rule == TaskConfig().damage_rule
+    assert TP.episode_steps == CFG.task.squeeze_steps + CFG.task.hold_steps
+
+
+@dataclasses.dataclass(frozen=True)
+class _TaskWithContactBonus(TaskConfig):
+    """The config's task section with one more field: a test-only reward term."""
+
+    reward_contact: float = 0.25
+
+
+_BONUS_LINE = "        reward = reward + params.reward_contact * number(eq.in_contact)\n"
+
+
+def _make_rules_with_contact_bonus():
+    """:func:`pneunet_env.task.make_rules` with one line more: its source, edited as a developer would edit it."""
+    import inspect
+
+    src = inspect.getsource(task.make_rules)
+    anchor = "        return Outcome("
+    assert src.count(anchor) == 1
+    namespace = dict(vars(task))
+    exec(compile(src.replace(anchor, _BONUS_LINE + anchor), "<make_rules with a contact bonus>", "exec"), namespace)
+    return namespace["make_rules"]
+
+
+def _bonus_configs():
+    base = dict(squeeze_steps=4, hold_steps=4, max_pressure_step_kpa=20.0)
+    return EnvConfig(task=TaskConfig(**base)), EnvConfig(task=_TaskWithContactBonus(**base))
+
+
+def _rollouts(make_env, cfg, n_steps=12):
+    env = make_env(cfg)
+    env.reset(seed=5)
+    rng = np.random.default_rng(5)
+    out = []
+    for _ in range(n_steps):
+        a = rng.uniform(-0.3, 1.2, env.action_space.shape).astype(np.float32)
+        obs, reward, terminated, truncated, info = env.step(a)
+        out.append((np.asarray(obs), np.asarray(reward, float), np.asarray(info["in_contact"]),
+                    np.asarray(terminated | truncated)))
+        if not np.ndim(terminated) and (terminated or truncated):
+            env.reset()
+    return out
+
+
+def _assert_only_the_reward_moved(plain, bonus, weight):
+    touched = 0
+    for (o0, r0, c0, d0), (o1, r1, c1, d1) in zip(plain, bonus, strict=True):
+        assert np.array_equal(o0, o1) and np.array_equal(c0, c1) and np.array_equal(d0, d1)
+        np.testing.assert_array_equal(r1, r0 + weight * c0)
+        touched += int(np.sum(c0))
+    assert touched > 0  # the term was in play
+
+
+@pytest.mark.parametrize("kind", ["single", "vector"])
+def test_a_new_reward_term_is_a_config_field_and_a_line_in_rules(kind, monkeypatch):
+    """Adding a reward term: a field of the task section (here a subclass stands in for a new ``TaskConfig`` field)
+    and one line in ``rules`` (inserted in ``make_rules``' source). Nothing else is edited, and the envs' rewards carry
+    the term, on one env (Python scalars) and on a batch (numpy arrays: the array step, around numba's batched solve
+    when numba is installed)."""
+    import gymnasium as gym
+
+    from pneunet_env.envs.grasp_vector import PneuNetGraspVectorEnv
+
+    def make(cfg):
+        if kind == "single":
+            return gym.make("PneuNetGrasp-v0", config=cfg)
+        return PneuNetGraspVectorEnv(3, config=cfg, backend="numba" if HAVE_NUMBA else "numpy", fused=False,
+                                     autoreset_mode="NextStep")
+
+    plain_cfg, bonus_cfg = _bonus_configs()
+    plain = _rollouts(make, plain_cfg)
+    monkeypatch.setattr(task, "make_rules", _make_rules_with_contact_bonus())
+    monkeypatch.setattr(task, "_RULES", {})  # rules_for builds the rules again, from the edited make_rules
+    with pytest.raises(AttributeError, match="reward_contact"):  # the line needs the field ...
+        _rollouts(make, plain_cfg, 1)
+    bonus = _rollouts(make, bonus_cfg)  # ... and with it, nothing else
+    assert task.TaskParams.from_config(bonus_cfg).reward_contact == 0.25
+    _assert_only_the_reward_moved(plain, bonus, 0.25)
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(not HAVE_NUMBA, reason="the fused step needs numba")
+def test_a_new_reward_term_reaches_the_fused_numba_step(monkeypatch):
+    """The same edit, on the fused numba step: its loop compiled again (numba reads the rules when it compiles)."""
+    import numba
+
+    from pneunet_env import fused
+    from pneunet_env.envs.grasp_vector import PneuNetGraspVectorEnv
+    from pneunet_env.physics import xp
+
+    def make(cfg):
+        return PneuNetGraspVectorEnv(3, config=cfg, backend="numba", parallel=False, autoreset_mode="NextStep")
+
+    plain_cfg, bonus_cfg = _bonus_configs()
+    plain = _rollouts(make, plain_cfg)
+    make_rules = _make_rules_with_contact_bonus()
+    monkeypatch.setattr(fused, "_rules", make_rules(numba.njit(fused._flag_value), numba.njit(xp.scalar_max),
+                                                    jit=numba.njit))
+    monkeypatch.setattr(fused, "_loop_serial", numba.njit(fused._make_loop(0, 0)))
+    bonus = _rollouts(make, bonus_cfg)
+    _assert_only_the_reward_moved(plain, bonus, 0.25)

@@ -12,6 +12,8 @@ from pathlib import Path
 from agents.design.outputs import write_design
 from agents.design.space import parse_bounds
 from agents.design.study import StudySpec, _optuna, make_storage, report, run_study, work
+from pneunet_env import arguments as checks
+from pneunet_env.files import atomic_write_text
 
 _DESCRIPTION = ("which actuator lets one blind pressure schedule hold a use case's objects, with margin for "
                 "manufacturing error (Optuna over the walls, the chamber and sourced elastomers)")
@@ -40,7 +42,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="catalogue class weights instead of a use case, e.g. apple=1,gelatin_gel=1")
     parser.add_argument("--trials", type=int, default=120,
                         help="designs in the study, in all (a resumed or joined study runs only the rest; default 120)")
-    parser.add_argument("--jobs", type=int, default=1, help="worker processes on this machine (default 1)")
+    parser.add_argument("--jobs", type=int, default=1,
+                        help="worker processes on this machine (default 1)")
     parser.add_argument("--storage", default=None,
                         help="Optuna storage shared by workers: an RDB URL (sqlite:///PATH, postgresql://...) or "
                              "journal:PATH (default: sqlite in --out, so a stopped run resumes)")
@@ -48,15 +51,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--objects", type=int, default=200, help="search objects per design (default 200)")
     parser.add_argument("--held-out", type=int, default=400,
                         help="held-out objects the best designs are reported on (default 400)")
-    parser.add_argument("--top", type=int, default=3, help="best designs reported and written (default 3)")
+    parser.add_argument("--top", type=int, default=3,
+                        help="best designs reported and written (default 3)")
     parser.add_argument("--seed", type=int, default=0, help="objects' and sampler's seed (default 0)")
     parser.add_argument("--sampler", choices=("tpe", "nsga2"), default="tpe",
                         help="Optuna's multi-objective sampler (default tpe)")
     parser.add_argument("--bound", action="append", default=[], metavar="KEY=LOW:HIGH",
                         help="narrow a parameter's range (repeatable), e.g. top_thickness_mm=1.5:3")
     parser.add_argument("--config", default=None, help="base env config YAML (objects, task) the design changes")
-    parser.add_argument("--out", type=Path, default=None, help="output folder (default design/USE_CASE)")
-    parser.add_argument("--export", type=Path, default=None,
+    parser.add_argument("--out", type=checks.output_dir, default=None,
+                        help="output folder (default design/USE_CASE), checked before any design is run")
+    parser.add_argument("--export", type=checks.output_file, default=None,
                         help="also write the best design's env config here (PATH.yaml, with PATH.best_ramp.json)")
     parser.add_argument("--worker", action="store_true",
                         help="only run trials (a worker joining --storage from another machine); no report")
@@ -72,8 +77,13 @@ def spec_from_args(args: argparse.Namespace) -> StudySpec:
     """The study's settings from the command line, every value checked before any work."""
     weights = _weights(args.class_weights)
     out = args.out if args.out is not None else Path("design") / (args.use_case if weights is None else "weights")
-    if out.exists() and not out.is_dir():
-        raise ValueError(f"--out {str(out)!r} exists and is not a folder")
+    checks.check_output_dir(out, "--out")  # the default folder too: refused now, not after the study
+    most_of = checks.MAX_COUNT
+    for flag, value, most in (("--trials", args.trials, most_of), ("--objects", args.objects, most_of),
+                              ("--held-out", args.held_out, most_of), ("--jobs", args.jobs, 1024),
+                              ("--top", args.top, 1000), ("--seed", args.seed, checks.MAX_SEED)):
+        if value > most:  # the lower bounds, and the names of the settings, are StudySpec's
+            raise ValueError(f"{flag} must be at most {most}, got {value}")
     if args.export is not None and args.export.suffix not in (".yaml", ".yml"):
         raise ValueError(f"--export must name a .yaml file, got {str(args.export)!r}")
     if args.worker and args.report:
@@ -121,7 +131,6 @@ def run(args: argparse.Namespace) -> int:
 
 def _run_checks(args: argparse.Namespace) -> int:
     from agents.design.checks import render_markdown, run_design_checks
-    from agents.policies import atomic_write_bytes
 
     try:
         spec = spec_from_args(args)
@@ -132,8 +141,8 @@ def _run_checks(args: argparse.Namespace) -> int:
     print(table)
     if args.out is not None:
         spec.out.mkdir(parents=True, exist_ok=True)
-        atomic_write_bytes(spec.out / "checks.md", (table + "\n").encode())
-        atomic_write_bytes(spec.out / "checks.json", (json.dumps([asdict(r) for r in res], indent=1) + "\n").encode())
+        atomic_write_text(spec.out / "checks.md", table + "\n")
+        atomic_write_text(spec.out / "checks.json", json.dumps([asdict(r) for r in res], indent=1) + "\n")
         print(f"wrote {spec.out / 'checks.md'} and checks.json")
     return 0 if all(r.passed == r.expected for r in res) else 1
 

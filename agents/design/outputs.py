@@ -4,7 +4,6 @@ importance)."""
 from __future__ import annotations
 
 import json
-import os
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -14,11 +13,11 @@ import numpy as np
 from agents.design.space import P_TILDE_MAX, RAMP_STEPS, WINDOW_POINTS, design_config
 from agents.scripted import jsonable
 from pneunet_env.config import EnvConfig
+from pneunet_env.yamlio import dump_yaml
 
 
 def design_yaml(params: Mapping[str, Any], base: EnvConfig, note: str) -> str:
     """The env config of a design as YAML (the actuator, its pressure scale and the objects it was designed for)."""
-    import yaml
 
     cfg = design_config(params, base)
     d = cfg.to_dict()
@@ -27,14 +26,14 @@ def design_yaml(params: Mapping[str, Any], base: EnvConfig, note: str) -> str:
             "task": {"max_pressure_kpa": d["task"]["max_pressure_kpa"],
                      "max_pressure_step_kpa": d["task"]["max_pressure_step_kpa"]}}
     head = "".join(f"# {line}\n" for line in note.splitlines())
-    return head + yaml.safe_dump(body, sort_keys=False)
+    return head + dump_yaml(body, sort_keys=False)
 
 
 def write_design(path: Path, row: dict[str, Any], base: EnvConfig, study: str) -> Path:
     """``PATH.yaml`` (the design's env config) and ``PATH.best_ramp.json`` (its blind ramp, found on the search
     objects), both written atomically."""
-    from agents.policies import atomic_write_bytes
     from agents.scripted import LinearRamp
+    from pneunet_env.files import atomic_write_bytes
 
     s, h = row["search"], row["held_out"]
     e = row["elastomer"]
@@ -64,7 +63,7 @@ def write_design(path: Path, row: dict[str, Any], base: EnvConfig, study: str) -
 
 def write_outputs(spec, result: dict[str, Any], base: EnvConfig) -> None:
     """Every output of a study's report in ``spec.out`` (atomic writes)."""
-    from agents.policies import atomic_write_bytes
+    from pneunet_env.files import atomic_write_bytes
 
     out = spec.out
     for row in result["designs"]:
@@ -86,13 +85,10 @@ def _plt():
 
 
 def _save(fig, path: Path, plt) -> Path:
-    """Save a figure atomically (a temporary PNG in the same folder, then renamed)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp.png")
-    fig.savefig(tmp, dpi=120)
-    plt.close(fig)
-    os.replace(tmp, path)
-    return path
+    """Save a figure atomically (:func:`pneunet_env.files.save_figure`) and close it."""
+    from pneunet_env.files import save_figure
+
+    return save_figure(fig, path, dpi=120)
 
 
 def _use_case_title(result: dict[str, Any]) -> str:

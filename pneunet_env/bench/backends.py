@@ -18,7 +18,6 @@ autoreset test), so they are what a training loop sees.
 
 from __future__ import annotations
 
-import json
 import os
 import platform
 import time
@@ -26,6 +25,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+from pneunet_env.files import atomic_write_json, save_figure
 
 __all__ = ["run_sweep", "format_sweep", "plot_sweep"]
 
@@ -191,12 +192,10 @@ def plot_sweep(res: dict[str, Any], path: Path) -> None:
     ax.grid(True, which="major", alpha=0.3)
     ax.legend(fontsize=8)
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    save_figure(fig, path, dpi=120)
 
 
 def write(res: dict[str, Any], out: Path) -> None:
     out.mkdir(parents=True, exist_ok=True)
-    (out / "backends.json").write_text(json.dumps(res, indent=1) + "\n")
+    atomic_write_json(out / "backends.json", res, indent=1)
     plot_sweep(res, out / "backends.png")

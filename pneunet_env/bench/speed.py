@@ -29,7 +29,6 @@ are noisier. No thresholds are asserted: the targets are printed next to the fig
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import os
 import platform
@@ -40,8 +39,11 @@ from typing import Any
 
 import numpy as np
 
+from pneunet_env import arguments as checks
+from pneunet_env.files import atomic_write_json, save_figure
 from pneunet_env.progress import add_progress_argument
 from pneunet_env.progress import progress as progress_bar
+from pneunet_env.yamlio import load_json_file
 
 __all__ = ["add_arguments", "run", "run_benchmark", "format_table", "plot", "NUM_ENVS", "TARGETS"]
 
@@ -143,28 +145,129 @@ def bench_single(steps: int, rounds: int, seed: int = 0, acc: _Accuracy | None =
 # --------------------------------------------------------------------------------------------------------
 
 
-def _vector_run(env, actions, collect: list | None) -> float:
-    """Wall time of ``len(actions)`` steps (auto-resets included)."""
+RAMP_TARGET_KPA = 33.9
+"""The ramp workload's target: the default task's best blind ramp (``agents/best_ramp.json``, found by
+``pneunet-grasp search``; a test keeps the two equal). The library does not read ``agents``' files."""
+RAMP_STEPS = 20
+"""The ramp workload's steps from 0 to the target (best-ramp's)."""
+POLICIES = ("random", "ramp")
+"""The vector env's workloads: uniform random actions (what most benchmarks run: the finger rarely touches, episodes
+end early), and the best blind ramp (what users run: a grasp, then the pressure held)."""
+
+
+def ramp_policy(config=None, target_kpa: float = RAMP_TARGET_KPA, n_steps: int = RAMP_STEPS):
+    """The best blind ramp as a function of a batch of observations ``(N, 1 or 2)`` -> float32 actions ``(N, 1)``:
+    the same formula as ``agents.scripted.LinearRamp`` (raise ``p/p_max`` by ``target / n_steps`` a step, then hold
+    it), written here so that the benchmark needs nothing from ``agents``."""
+    from pneunet_env.config import EnvConfig
+
+    task = (EnvConfig() if config is None else config).task
+    target = target_kpa / task.max_pressure_kpa
+    increment = target / n_steps
+    step_fraction = task.max_pressure_step_kpa / task.max_pressure_kpa
+
+    def act(obs):
+        p = np.asarray(obs, dtype=np.float64)[..., 0]
+        change = np.where(p <= target, np.minimum(p + increment, target), target) - p
+        change = np.where(np.abs(change) <= np.spacing(p.astype(np.float32)), 0.0, change)  # hold: exactly 0
+        return np.clip(change / step_fraction, -1.0, 1.0)[..., None].astype(np.float32)
+
+    return act
+
+
+def _vector_run(env, actions, collect: Any = None, policy=None, obs=None) -> float:
+    """Wall time of ``len(actions)`` steps (auto-resets included). With ``policy``, each step's action is
+    ``policy(obs)`` (computed inside the timing, as a user's loop does), ``actions`` only sets the count. ``collect``:
+    anything with ``append`` (a list, or a :class:`_Work`), given each step's info."""
     step = env.step
     t0 = time.perf_counter()
-    if collect is None:
+    if policy is not None:
+        for _ in range(len(actions)):
+            obs, _, _, _, info = step(policy(obs))
+            if collect is not None:
+                collect.append(info)
+    elif collect is None:
         for a in actions:
             step(a)
     else:
         append = collect.append
         for a in actions:
-            _, _, term, trunc, info = step(a)
-            append((info["gradient_norm"], info["solver_converged"], info.get("final_info")))
+            append(step(a)[4])
     return time.perf_counter() - t0
 
 
+WORKLOAD_MIN_STEPS = 100
+"""The untimed full-info pass that counts the work per env-step runs at least this many steps: one default episode
+(``squeeze_steps + hold_steps``), so that the ramp's hold is counted too."""
+
+_COUNT_KEYS = {"solver_iterations": "newton_iterations", "solver_substeps": "substeps",
+               "solver_evaluations": "energy_evaluations", "solver_backtracks": "backtracks"}
+"""Full-info keys counted per env-step (those the installed solver reports) -> their name in the JSON."""
+
+
+class _Work:
+    """Per env-step counts over a run's full infos, added one step at a time (``append``: what :func:`_vector_run`
+    calls), so that no info is kept: solver work, contact share, unchanged-pressure share, resets. The step that ends
+    an episode reports its solve in ``final_info``."""
+
+    def __init__(self, acc: _Accuracy | None) -> None:
+        self.acc = acc
+        self.sums: dict[str, float] = {}
+        self.n = self.touch = self.unchanged = self.resets = 0
+        self.prev = None
+
+    def append(self, info: dict[str, Any]) -> None:
+        final = info.get("final_info")
+        done = final["_pressure"] if final is not None else None
+
+        def pick(key):
+            v = np.asarray(info[key])
+            return v if final is None or key not in final else np.where(done, final[key], v)
+
+        if self.acc is not None:
+            self.acc.add(pick("gradient_norm"), pick("solver_converged"))
+        for key, name in _COUNT_KEYS.items():
+            if key in info:
+                self.sums[name] = self.sums.get(name, 0.0) + float(np.sum(pick(key)))
+        pressure = pick("pressure")
+        self.touch += int(np.sum(pick("in_contact")))
+        if self.prev is not None:
+            same = pressure == self.prev
+            self.unchanged += int(np.sum(same if done is None else same & ~done))
+        self.resets += 0 if done is None else int(np.sum(done))
+        self.prev = np.asarray(info["pressure"])  # after an autoreset: the new episode's start
+        self.n += pressure.size
+
+    def result(self) -> dict[str, Any]:
+        n = self.n
+        out: dict[str, Any] = {name: v / n for name, v in self.sums.items()} if n else {}
+        out.update(env_steps=n, contact_share=self.touch / n if n else math.nan,
+                   unchanged_pressure_share=self.unchanged / n if n else math.nan,
+                   episode_end_share=self.resets / n if n else math.nan)
+        return out
+
+
+def _workload(infos, acc: _Accuracy | None) -> dict[str, Any]:
+    """Per env-step counts over a run's full infos (see :class:`_Work`)."""
+    work = _Work(acc)
+    for info in infos:
+        work.append(info)
+    return work.result()
+
+
 def bench_vector(num_envs: tuple[int, ...], env_steps: int, min_steps: int, repeats: int, seed: int = 0,
-                 backend: str = "auto", acc: _Accuracy | None = None, progress=None) -> list[dict[str, Any]]:
-    """Env-steps per second of the batched env and of CartPole's vector env at each N."""
+                 backend: str = "auto", acc: _Accuracy | None = None, progress=None,
+                 policies: tuple[str, ...] = POLICIES) -> list[dict[str, Any]]:
+    """Env-steps per second of the batched env (per workload in ``policies``) and of CartPole's vector env (random
+    actions) at each N, and each workload's per-env-step solver counts (an untimed pass at the full info level)."""
     import gymnasium as gym
 
     import pneunet_env  # noqa: F401
 
+    for name in policies:
+        if name not in POLICIES:
+            raise ValueError(f"policies: unknown workload {name!r}; known: {', '.join(POLICIES)}")
+    ramp = ramp_policy()
     rows = []
     for n in num_envs:
         steps = int(max(min_steps, min(4000, env_steps // n)))
@@ -173,37 +276,41 @@ def bench_vector(num_envs: tuple[int, ...], env_steps: int, min_steps: int, repe
         cp = gym.make_vec("CartPole-v1", num_envs=n)
         pn_actions = rng.uniform(-1.0, 1.0, (steps, n, 1)).astype(np.float32)
         cp_actions = rng.integers(0, 2, (steps, n))
-        rates: dict[str, list[float]] = {"PneuNetGrasp-v0": [], "CartPole-v1": []}
+        runs = [(f"PneuNetGrasp-v0 {p}", pn, pn_actions, ramp if p == "ramp" else None) for p in policies]
+        runs.append(("CartPole-v1", cp, cp_actions, None))
+        rates: dict[str, list[float]] = {name: [] for name, *_ in runs}
         for r in range(repeats):
-            for name, env, acts in (("PneuNetGrasp-v0", pn, pn_actions), ("CartPole-v1", cp, cp_actions)):
-                env.reset(seed=seed + r)
-                env.step(acts[0])  # warm-up step (numba's parallel loop starts its threads)
-                dt = _vector_run(env, acts, None)
+            for name, env, acts, policy in runs:
+                obs, _ = env.reset(seed=seed + r)
+                obs = env.step(acts[0] if policy is None else policy(obs))[0]  # warm-up (numba starts its threads)
+                dt = _vector_run(env, acts, None, policy, obs)
                 rates[name].append(n * steps / dt)
-        if acc is not None:  # the same steps again, untimed, with the full info (its solver diagnostics)
-            full = gym.make_vec("PneuNetGrasp-v0", num_envs=n, backend=backend, info_level="full")
-            full.reset(seed=seed)
-            collect: list = []
-            _vector_run(full, pn_actions, collect)
-            full.close()
-            for gn, conv, final in collect:
-                if final is None:
-                    acc.add(gn, conv)
-                else:  # the ended episodes' step: its solve's diagnostics are in final_info
-                    done = final["_gradient_norm"]
-                    acc.add(np.where(done, final["gradient_norm"], gn), np.where(done, final["solver_converged"], conv))
+        workloads = {}
+        if acc is not None:  # the same steps again, untimed, with the full info (solver diagnostics and counts),
+            # over at least one whole episode (a short timed run sees only the ramp's start)
+            w_actions = pn_actions if steps >= WORKLOAD_MIN_STEPS else np.concatenate(
+                [pn_actions, rng.uniform(-1.0, 1.0, (WORKLOAD_MIN_STEPS - steps, n, 1)).astype(np.float32)])
+            for p in policies:
+                full = gym.make_vec("PneuNetGrasp-v0", num_envs=n, backend=backend, info_level="full")
+                obs, _ = full.reset(seed=seed)
+                work = _Work(acc)
+                _vector_run(full, w_actions, work, ramp if p == "ramp" else None, obs)
+                full.close()
+                workloads[p] = work.result()
         state_bytes = pn.unwrapped.state_nbytes()
         pn.close()
         cp.close()
         best = {k: max(v) for k, v in rates.items()}
+        cart = best["CartPole-v1"]
         rows.append({
             "num_envs": n,
             "steps": steps,
             "repeats": repeats,
             "steps_per_s": best,
-            "ratio": best["PneuNetGrasp-v0"] / best["CartPole-v1"],
+            "ratio": {p: best[f"PneuNetGrasp-v0 {p}"] / cart for p in policies},
             "time_per_step_s": {k: n / v for k, v in best.items()},
             "state_bytes_per_env": state_bytes / n,
+            "workload": workloads,
         })
         if progress is not None:
             progress.update(1)
@@ -417,15 +524,26 @@ def format_table(res: dict[str, Any]) -> str:
         f"  {'CartPole-v1':<22}{s['median_step_s']['CartPole-v1'] * 1e6:>10.2f} us",
         f"  {'ratio':<22}{s['ratio']:>10.2f} x    (target <= {TARGETS['single_step_ratio_max']:g})",
         "",
-        "vector env: env-steps/s (gym.make_vec)",
-        f"  {'N':>6}  {'PneuNetGrasp-v0':>16}  {'CartPoleVectorEnv':>18}  {'ratio':>7}  {'us/env-step':>11}",
+        "vector env: env-steps/s (gym.make_vec); workloads: random actions, and the best blind ramp "
+        f"({RAMP_TARGET_KPA:g} kPa over {RAMP_STEPS} steps, then held); CartPole: random actions",
+        f"  {'N':>6}  {'random':>12}  {'ramp':>12}  {'CartPoleVectorEnv':>18}  {'ratio random':>12}  "
+        f"{'ratio ramp':>10}",
     ]
     for row in res["vector_env"]:
-        r = row["steps_per_s"]
-        lines.append(
-            f"  {row['num_envs']:>6}  {_fmt_rate(r['PneuNetGrasp-v0']):>16}  {_fmt_rate(r['CartPole-v1']):>18}  "
-            f"{row['ratio']:>7.3f}  {1e6 / r['PneuNetGrasp-v0']:>11.3f}"
-        )
+        r, q = row["steps_per_s"], row["ratio"]
+        cells = [f"{_fmt_rate(r[k]):>12}" if k in r else f"{'-':>12}"
+                 for k in ("PneuNetGrasp-v0 random", "PneuNetGrasp-v0 ramp")]
+        ratios = [f"{q[p]:>12.3f}" if p in q else f"{'-':>12}" for p in ("random", "ramp")]
+        lines.append(f"  {row['num_envs']:>6}  {cells[0]}  {cells[1]}  {_fmt_rate(r['CartPole-v1']):>18}  "
+                     f"{ratios[0]}  {ratios[1][2:]}")
+    work = res["vector_env"][-1].get("workload") or {}
+    if work:
+        keys = [k for k in ("energy_evaluations", "newton_iterations", "substeps", "backtracks", "contact_share",
+                            "unchanged_pressure_share", "episode_end_share") if any(k in w for w in work.values())]
+        lines += ["", f"per env-step at N = {res['vector_env'][-1]['num_envs']:,} (untimed pass, full info)",
+                  f"  {'':<26}" + "".join(f"{p:>10}" for p in work)]
+        for k in keys:
+            lines.append(f"  {k:<26}" + "".join(f"{w.get(k, math.nan):>10.3f}" for w in work.values()))
     lines.append(f"  (target: >= {_fmt_rate(TARGETS['vector_steps_per_s_at_16384_min'])} env-steps/s at N = 16,384)")
     sv = res["solves"]
     lines += [
@@ -485,15 +603,19 @@ def plot(res: dict[str, Any], path: Path) -> None:
 
     rows = res["vector_env"]
     n = np.array([r["num_envs"] for r in rows])
-    pn = np.array([r["steps_per_s"]["PneuNetGrasp-v0"] for r in rows])
     cp = np.array([r["steps_per_s"]["CartPole-v1"] for r in rows])
-    ax2.loglog(n, pn, "o-", color=pn_c, label="PneuNetGraspVectorEnv")
+    workloads = [p for p in POLICIES if all(f"PneuNetGrasp-v0 {p}" in r["steps_per_s"] for r in rows)]
+    pn = np.array([[r["steps_per_s"][f"PneuNetGrasp-v0 {p}"] for r in rows] for p in workloads]).reshape(-1, len(n))
+    for j, p in enumerate(workloads):
+        ax2.loglog(n, pn[j], "o-" if p == "random" else "D--", color=pn_c, label=f"PneuNetGraspVectorEnv, {p}")
     ax2.loglog(n, cp, "s-", color=cp_c, label="CartPoleVectorEnv")
-    for x, y, c, r in zip(n, pn, cp, rows, strict=True):
-        above = c / y > 8.0  # room between the two curves on the log scale; else below the point
-        ax2.annotate(f"{_short(y)}/s\n{r['ratio']:.2f}× CP", (x, y), textcoords="offset points",
-                     xytext=(0, 9 if above else -9), ha="center", va="bottom" if above else "top", fontsize=8,
-                     color=pn_c)
+    if workloads:  # the last workload's figures (the ramp: what users run)
+        y_last, p_last = pn[-1], workloads[-1]
+        for x, y, c, r in zip(n, y_last, cp, rows, strict=True):
+            above = c / y > 8.0  # room between the two curves on the log scale; else below the point
+            ax2.annotate(f"{_short(y)}/s\n{r['ratio'][p_last]:.2f}× CP", (x, y), textcoords="offset points",
+                         xytext=(0, 9 if above else -9), ha="center", va="bottom" if above else "top", fontsize=8,
+                         color=pn_c)
     target = TARGETS["vector_steps_per_s_at_16384_min"]
     ax2.plot([n[-1]], [target], marker="_", markersize=22, mew=2, color="0.25", ls="none")
     ax2.annotate("target\n10⁶/s", (n[-1], target), textcoords="offset points", xytext=(14, 0), ha="left",
@@ -503,7 +625,7 @@ def plot(res: dict[str, Any], path: Path) -> None:
     ax2.set_xticks(n)
     ax2.set_xticklabels([f"{v:,}" for v in n])
     ax2.set_xlim(n[0] / 2.5, n[-1] * 8)
-    ax2.set_ylim(min(pn.min(), cp.min()) / 8, max(pn.max(), cp.max()) * 4)
+    ax2.set_ylim(min(pn.min(initial=cp.min()), cp.min()) / 8, max(pn.max(initial=cp.max()), cp.max()) * 4)
     ax2.set_title("vector env (gym.make_vec)", fontsize=11)
     ax2.legend(loc="upper left", fontsize=9, title="CP: CartPole", title_fontsize=8)
     ax2.grid(True, which="major", alpha=0.3)
@@ -515,22 +637,20 @@ def plot(res: dict[str, Any], path: Path) -> None:
         f"{a['worst_gradient_norm']:.1e}", fontsize=10,
     )
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=120)
-    plt.close(fig)
+    save_figure(fig, path, dpi=120)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--quick", action="store_true", help="fewer steps and repeats (CI: well under a minute)")
-    parser.add_argument("--out", type=Path, default=Path("bench_out/speed"),
-                        help="output folder (speed.json, speed.png)")
+    parser.add_argument("--out", type=checks.output_dir, default="bench_out/speed",
+                        help="output folder (speed.json, speed.png), checked before the benchmark")
     parser.add_argument("--backend", choices=("auto", "numba", "numpy", "torch"), nargs="+", default=["auto"],
                         help="the vector env's batched solver (default: numba if installed). Several, or torch: "
                              "the backend sweep instead (env-steps/s against N per backend and device, against "
                              "CartPoleVectorEnv and numba; backends.json, backends.png)")
     parser.add_argument("--device", nargs="+", default=None,
                         help="torch's devices for the backend sweep (default: cpu), e.g. --device cpu cuda")
-    parser.add_argument("--num-envs", type=int, nargs="+", default=None,
+    parser.add_argument("--num-envs", type=checks.integer(1, 2**26), nargs="+", default=None,
                         help="the sweep's N (default: 256 4096 16384; 16384 262144 1048576 4194304 on a GPU)")
     parser.add_argument("--compile", action="store_true",
                         help="torch: also measure it with the solver's round through torch.compile")
@@ -553,14 +673,16 @@ def run(args: argparse.Namespace) -> int:
         path = out / "speed.json"
         if not path.is_file():
             raise SystemExit(f"--plot-only needs {path} (from an earlier run with --out {out})")
-        res = json.loads(path.read_text())
+        try:
+            res = load_json_file(path, "speed record")
+        except ValueError as exc:
+            raise SystemExit(f"--plot-only: {path} is not a readable speed record ({exc})") from None
         plot(res, out / "speed.png")
         print(format_table(res))
         print(f"\nredrew {out}/speed.png from {path}")
         return 0
-    out.mkdir(parents=True, exist_ok=True)
     res = run_benchmark(quick=args.quick, progress=args.progress, backend=args.backend)
-    (out / "speed.json").write_text(json.dumps(res, indent=1) + "\n")
+    atomic_write_json(out / "speed.json", res)
     plot(res, out / "speed.png")
     print(format_table(res))
     print(f"\nwrote {out}/speed.json, speed.png ({res['wall_s']:.1f} s)")

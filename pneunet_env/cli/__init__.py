@@ -5,6 +5,15 @@ Each subcommand lives in its own module, imported only when it runs (or is asked
 A subcommand module provides ``add_arguments(parser)`` and ``run(args) -> int``. Commands whose name has two
 words (``bench speed``) form a group (``bench``) that answers ``--help`` with its sub-commands.
 ``python -m pneunet_env.cli`` is the same as ``pneunet-grasp``.
+
+**Errors.** Every command's errors end the same way: one line on stderr, ``pneunet-grasp CMD: error: MESSAGE``
+naming the input, and exit status 2, without a traceback. That holds for argparse's own errors (an unknown option, a
+value its ``type=`` refuses: :mod:`pneunet_env.arguments` checks numbers and output paths at parse time, before any
+work), for a ``ValueError``, ``TypeError`` or ``OverflowError`` (``int(inf)``) a command raises from bad input, and
+for a command's ``SystemExit`` with a message. Ctrl-C ends a command with one line, ``pneunet-grasp CMD:
+interrupted``, and exit status 130; a reader of stdout that goes away (``| head``) with exit status 141, quietly.
+Set the environment variable ``PNEUNET_DEBUG=1`` to see the full traceback of an error or an interruption instead
+(for developers).
 """
 
 from __future__ import annotations
@@ -17,7 +26,7 @@ import sys
 
 from pneunet_env.extras import PROG, require_extra
 
-__all__ = ["COMMANDS", "GROUPS", "main", "require_extra"]
+__all__ = ["COMMANDS", "DEBUG_ENV", "GROUPS", "CommandError", "main", "require_extra"]
 
 # name -> (module, one-line help)
 COMMANDS: dict[str, tuple[str, str]] = {
@@ -48,6 +57,47 @@ GROUPS: dict[str, str] = {
 }
 
 _HELP = ("-h", "--help")
+
+DEBUG_ENV = "PNEUNET_DEBUG"
+"""Set it (``PNEUNET_DEBUG=1``) to see a command error's full traceback instead of its one line."""
+
+
+class CommandError(SystemExit):
+    """A command's error, already printed as one line on stderr: exit status 2. ``str()`` is the message (its
+    ``code`` is the exit status, as for argparse's errors)."""
+
+    def __init__(self, message: str) -> None:
+        super().__init__(2)
+        self.message = message
+
+    def __str__(self) -> str:
+        return self.message
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse, with its errors on one line: ``pneunet-grasp CMD: error: argument --x: MESSAGE``, exit status 2."""
+
+    def error(self, message: str):  # type: ignore[override]
+        _fail(self.prog, message)
+
+
+def _debug() -> bool:
+    return os.environ.get(DEBUG_ENV, "").strip().lower() not in ("", "0", "false", "no", "off")
+
+
+def _one_line(message: str, prog: str) -> str:
+    """``message`` on one line, without a ``PROG:`` prefix the command already put there (the line carries it)."""
+    text = " ".join(str(message).split())
+    for prefix in (f"{prog}: error: ", f"{prog}: ", f"{prog.removeprefix(PROG + ' ')}: "):
+        text = text.removeprefix(prefix)
+    return text
+
+
+def _fail(prog: str, message: str):
+    """Print ``PROG: error: MESSAGE`` (one line) and raise :class:`CommandError` (exit status 2)."""
+    line = _one_line(message, prog)
+    print(f"{prog}: error: {line}", file=sys.stderr)
+    raise CommandError(line)
 
 
 def _subcommands(group: str) -> dict[str, str]:
@@ -141,25 +191,48 @@ def main(argv: list[str] | None = None) -> int:
             return 0
         print(missing, file=sys.stderr)
         return 2
-    parser = argparse.ArgumentParser(prog=f"{PROG} {name}", description=help_)
+    prog = f"{PROG} {name}"
+    parser = _Parser(prog=prog, description=help_)
     module.add_arguments(parser)
-    args = parser.parse_args(args_in)
-    config = getattr(args, "config", None)
-    if isinstance(config, str) and not os.path.isfile(config):  # a shipped config by name: ppo, designed-kitchen
-        from agents.resources import is_name, resolve_config
-
-        if is_name(config):
-            try:
-                args.config_given = config
-                args.config = str(resolve_config(config, "train" if name == "train" else "env"))
-            except ValueError as exc:
-                raise SystemExit(f"{PROG} {name}: {exc}") from None
     try:
+        args = parser.parse_args(args_in)
+        _resolve_config(args, name)
         return int(module.run(args) or 0)
     except BrokenPipeError:
         if not _stdout_closed():
             raise  # some other pipe: a real error
         return 141  # the reader of stdout went away (``| head``): stop quietly, 128 + SIGPIPE, as a Unix command does
+    except KeyboardInterrupt as exc:
+        if _debug():
+            raise
+        note = " ".join(str(a) for a in exc.args if str(a).strip())  # where the command left things, if it says
+        print(f"{prog}: interrupted" + (f" {note}" if note else ""), file=sys.stderr)
+        return 130  # 128 + SIGINT, as a shell reports it
+    except (ValueError, TypeError, OverflowError) as exc:  # bad input, found by the command: one line naming it
+        if _debug():
+            raise
+        _fail(prog, str(exc) or type(exc).__name__)
+    except CommandError:
+        raise
+    except SystemExit as exc:
+        if _debug() or exc.code is None or isinstance(exc.code, int):
+            raise  # a status alone: the command printed its message (argparse's --help, require_extra)
+        _fail(prog, str(exc.code))
+
+
+def _resolve_config(args: argparse.Namespace, name: str) -> None:
+    """``--config`` as a file: a shipped config by name (``ppo``, ``designed-kitchen``) becomes its path; a folder
+    or a missing file is an error naming it, before the command runs."""
+    config = getattr(args, "config", None)
+    if not isinstance(config, str) or os.path.isfile(config):
+        return
+    if os.path.isdir(config):
+        raise ValueError(f"--config {config!r} is a folder, not a config file")
+    from agents.resources import is_name, resolve_config
+
+    if is_name(config):
+        args.config_given = config
+    args.config = str(resolve_config(config, "train" if name == "train" else "env"))
 
 
 def _stdout_closed() -> bool:

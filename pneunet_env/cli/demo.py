@@ -39,6 +39,8 @@ from pathlib import Path
 
 import numpy as np
 
+from pneunet_env import arguments as checks
+from pneunet_env.files import atomic_write_text
 from pneunet_env.progress import add_progress_argument, progress
 
 DEFAULT_POLICIES = ("best-ramp", "oracle", "rigid")
@@ -79,25 +81,29 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--task", choices=("default", "paper"), default="default",
                         help="default: objects drawn from the catalogue (by regime and class); paper: the paper's "
                              "250 mm ring, by stiffness bin")
-    parser.add_argument("--objects", type=int, default=None,
+    parser.add_argument("--objects", type=checks.count, default=None,
                         help=f"objects drawn (the default task only; default {DEFAULT_OBJECTS})")
     parser.add_argument("--policy", action="append", default=None, metavar="NAME",
                         help="policies to run (repeatable; default best-ramp, oracle, rigid; see agents.policies)")
-    parser.add_argument("--targets-kpa", type=float, nargs="+", default=[],
+    parser.add_argument("--targets-kpa", type=checks.non_negative, nargs="+", default=[],
                         help="also run plain linear ramps to these targets (kPa)")
-    parser.add_argument("--ramp-steps", type=int, default=40, help="steps of those ramps from 0 to the target "
-                        "(default 40)")
+    parser.add_argument("--ramp-steps", type=checks.integer(1, 100_000), default=40,
+                        help="steps of those ramps from 0 to the target (default 40)")
     for flag, default, help_ in PAPER_OPTIONS:
-        parser.add_argument(flag, type=type(default), default=None, help=f"{help_} (--task paper only; default "
+        kind = checks.integer(1, 10_000 if flag == "--bins" else checks.MAX_COUNT) if isinstance(default, int) \
+            else checks.positive
+        parser.add_argument(flag, type=kind, default=None, help=f"{help_} (--task paper only; default "
                             f"{default:g})")
-    parser.add_argument("--seed", type=int, default=0, help="base seed (default 0)")
+    parser.add_argument("--seed", type=checks.seed, default=0, help="base seed (default 0)")
     parser.add_argument("--config", default=None, metavar="PATH",
                         help="environment config YAML (default: built-in defaults); best-ramp and rigid load "
                              "DIR/NAME.best_ramp.json and DIR/NAME.best_rigid.json where they lie beside DIR/NAME.yaml")
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                         help="override an environment config key, on top of --config (repeatable; VALUE is YAML), "
                              "e.g. --set max_pressure_kpa=40; a schedule beside --config still applies")
-    parser.add_argument("--json", type=Path, default=None, help="also write the results as JSON to this path")
+    parser.add_argument("--json", type=checks.output_file, default=None,
+                        help="also write the results as JSON to this file (checked before the first episode; an "
+                             "existing file is replaced whole)")
     add_progress_argument(parser)
 
 
@@ -124,6 +130,8 @@ def run(args: argparse.Namespace) -> int:
         usage_error(PROG, "--bins, --episodes, --objects and --ramp-steps must be >= 1")
     if not 0.0 < args.k_min < args.k_max:
         usage_error(PROG, f"need 0 < --k-min < --k-max, got {args.k_min:g} and {args.k_max:g}")
+    if args.bins * args.episodes > checks.MAX_COUNT:  # their draws are made up front
+        usage_error(PROG, f"--bins x --episodes is {args.bins * args.episodes} objects; at most {checks.MAX_COUNT}")
     try:
         overrides = parse_overrides(args.overrides)
         cfg = load_config(args.config, **{**(PAPER_TASK if args.task == "paper" else {}), **overrides})
@@ -199,11 +207,10 @@ def run(args: argparse.Namespace) -> int:
               "indentation past the crush depth. See docs/results-paper.md.")
     print(f"\n{len(results)} episodes in {elapsed:.1f} s")
     if args.json is not None:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps({"args": {k: (str(v) if isinstance(v, Path) else v)
-                                                  for k, v in vars(args).items() if k != "func"},
-                                         "policies": {e.name: e.label for e in entries},
-                                         "bin_edges": edges.tolist(), "episodes": results}, indent=1))
+        atomic_write_text(args.json, json.dumps({"args": {k: (str(v) if isinstance(v, Path) else v)
+                                                          for k, v in vars(args).items() if k != "func"},
+                                                 "policies": {e.name: e.label for e in entries},
+                                                 "bin_edges": edges.tolist(), "episodes": results}, indent=1))
         print(f"wrote {args.json}")
     return 0
 
@@ -290,10 +297,9 @@ def _run_distribution(args: argparse.Namespace, cfg, entries) -> int:
     print("\n" + "; ".join(f"{short[e.name]}: {e.label}" for e in entries))
     print(f"\n{len(entries) * len(seeds)} episodes in {elapsed:.1f} s")
     if args.json is not None:
-        args.json.parent.mkdir(parents=True, exist_ok=True)
-        args.json.write_text(json.dumps({"task": "default", "use_case": cfg.objects.use_case, "summary": summary,
-                                         "regime": reg.tolist(), "classes": classes,
-                                         "episodes": {k: v for k, v in results.items()}}, indent=1))
+        atomic_write_text(args.json, json.dumps({"task": "default", "use_case": cfg.objects.use_case,
+                                                 "summary": summary, "regime": reg.tolist(), "classes": classes,
+                                                 "episodes": {k: v for k, v in results.items()}}, indent=1))
         print(f"wrote {args.json}")
     return 0
 

@@ -12,16 +12,19 @@ seed), frames ``OUT/frames/<NAME>_<step>.png``.
 (no frames, no folder). One of ``--out`` and ``--sheet`` is needed. Each frame carries its label (the object, the
 step, the pressure, the state), so frames must be at least 240 x 180 pixels (``--width``/``--height``, or the
 config's ``render`` size); a smaller size is refused with a message naming it.
-PNGs are written with :func:`pneunet_env.envs.render.save_png` (zlib only; no matplotlib needed).
+PNGs are written with :func:`pneunet_env.envs.render.save_png` (zlib only; no matplotlib needed), atomically: an
+existing sheet or frame is replaced whole, never left half-written. Every value is checked before the first episode:
+``--out`` must be a folder that exists or can be created, ``--sheet`` a file that can be written; a bad value is one
+line, exit status 2.
 """
 
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
 import numpy as np
 
+from pneunet_env import arguments as checks
 from pneunet_env.progress import add_progress_argument, progress
 
 DEFAULT_STIFFNESS = (1e-5, 1e-4, 1e-2)
@@ -29,18 +32,21 @@ DEFAULT_STIFFNESS = (1e-5, 1e-4, 1e-2)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--out", type=Path, default=None,
+    parser.add_argument("--out", type=checks.output_dir, default=None,
                         help="output folder (created): every frame under OUT/frames/ and the sheet as OUT/sheet.png; "
                              "optional with --sheet (then only the sheet is written, no frames)")
-    parser.add_argument("--stiffness", type=float, nargs="+", default=None,
+    parser.add_argument("--stiffness", type=checks.non_negative, nargs="+", default=None,
                         help="object stiffness(es) k~ = k_obj w/mu, one episode each (default "
                              f"{' '.join(f'{k:.0e}' for k in DEFAULT_STIFFNESS)})")
     parser.add_argument("--object", nargs="+", default=None, metavar="CLASS",
                         help="catalogue class(es), one episode each, the object drawn from that class (instead of "
                              "--stiffness), e.g. gelatin_gel kiwifruit apple")
-    parser.add_argument("--steps", type=int, default=40, help="ramp steps from 0 to the target (default 40)")
-    parser.add_argument("--target", type=float, default=1.0, help="ramp target, fraction of p_max (default 1)")
-    parser.add_argument("--columns", type=int, default=6, help="frames per stiffness on the sheet (default 6)")
+    parser.add_argument("--steps", type=checks.integer(1, 100_000), default=40,
+                        help="ramp steps from 0 to the target (default 40)")
+    parser.add_argument("--target", type=checks.real(0.0, 1.0), default=1.0,
+                        help="ramp target, fraction of p_max in [0, 1] (default 1)")
+    parser.add_argument("--columns", type=checks.integer(1, 100), default=6,
+                        help="frames per stiffness on the sheet, 1 to 100 (default 6)")
     parser.add_argument("--config", default=None, help="environment config YAML (default: the built-in defaults)")
     parser.add_argument("--env", default="PneuNetGrasp-v0", choices=("PneuNetGrasp-v0", "PneuNetGrasp-Paper-v0"),
                         help="the environment (default PneuNetGrasp-v0; PneuNetGrasp-Paper-v0: the paper's ring)")
@@ -50,8 +56,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="frame width in px, at least 240 for the label (default: the config's, 480)")
     parser.add_argument("--height", type=int, default=None,
                         help="frame height in px, at least 180 for the label (default: the config's, 360)")
-    parser.add_argument("--seed", type=int, default=0, help="reset seed (default 0)")
-    parser.add_argument("--sheet", type=Path, default=None,
+    parser.add_argument("--seed", type=checks.seed, default=0, help="reset seed (default 0)")
+    parser.add_argument("--sheet", type=checks.output_file, default=None,
                         help="write the contact sheet (frames over a legend) to this path too; without --out, only it")
     add_progress_argument(parser)
 
@@ -147,7 +153,6 @@ def run(args: argparse.Namespace) -> int:
         path = save_png(args.out / "sheet.png", sheet)
         print(f"wrote {frames_dir}/*.png and {path}")
     if args.sheet is not None:
-        args.sheet.parent.mkdir(parents=True, exist_ok=True)
         save_png(args.sheet, sheet)
         print(f"wrote {args.sheet}")
     return 0

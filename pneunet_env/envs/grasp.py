@@ -1,8 +1,9 @@
 """``PneuNetGrasp-v0``: a pneu-net actuator grasps an object of unknown stiffness, blind.
 
 A thin shell around the pure step of :mod:`pneunet_env.task` (:func:`~pneunet_env.task.step` on scalars, with the
-Newton contact): this module holds the Gymnasium API, the spaces and the rendering hook, nothing of the physics
-or the rules.
+Newton contact): the reset, the step and the state are the single envs' shared shell
+(:class:`pneunet_env.envs.base.SingleGraspEnv`); this module adds the spaces, the info, the rendering and the
+docs of the task, nothing of the physics or the rules.
 """
 
 from __future__ import annotations
@@ -12,82 +13,126 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
-from gymnasium.error import ResetNeeded
 
 from pneunet_env import task
-from pneunet_env.config import EnvConfig, load_config
+from pneunet_env.config import EnvConfig
+from pneunet_env.envs.base import SingleGraspEnv
 from pneunet_env.physics.params import check_object
-from pneunet_env.physics.solver import Equilibrium
 
-__all__ = ["PneuNetGraspEnv", "observation_space", "single_env_step"]
+__all__ = ["PneuNetGraspEnv", "observation_space"]
 
 
-class PneuNetGraspEnv(gym.Env):
+class PneuNetGraspEnv(SingleGraspEnv):
     """A soft pneumatic finger (a pneu-net) closes on an object it cannot see, lifts it and holds it.
 
     ## Description
 
-    One pneu-net chamber (the unit cell of the seed paper: a stiff PDMS base, Gent-elastomer side and
-    top walls) is inflated; the object is an arc of curvature ``kappa_obj`` and thickness ``H`` on a
-    Winkler foundation of stiffness ``k_obj`` (eq. 3.2 from its shear modulus). Each step is quasi-static:
-    the equilibrium at the new pressure is the local energy minimum reached from the previous one
-    (:func:`pneunet_env.solve_equilibrium`, with pressure continuation, so folds are never jumped over).
-    The policy sees only the pressure: it is blind to the object on purpose. The paper's claim is that a
-    blind schedule grasps soft objects (force-limited: the traction saturates) and stiff ones
-    (position-limited: the curvature stays at the object's) alike.
+    One pneu-net chamber (the unit cell of the seed paper, Table 1's actuator: a stiff PDMS base, Gent-elastomer
+    side and top walls) is inflated. The object is an annulus of outer radius ``R = 1/kappa_obj`` and compliant
+    depth ``H`` on a Winkler foundation of stiffness ``k_obj`` (eq. 3.2 from its shear modulus ``mu_obj = E/3``).
+    Each step is quasi-static: the equilibrium at the new pressure is the local energy minimum reached from the
+    previous one (:func:`pneunet_env.solve_equilibrium`, with pressure continuation, so folds are never jumped
+    over). The policy sees only the pressure: it is blind to the object on purpose. The paper's claim is that a
+    blind schedule grasps soft objects (force-limited: the traction saturates) and stiff ones (position-limited:
+    the curvature stays at the object's) alike.
 
-    An episode is one grasp: a **squeeze phase** (``squeeze_steps``, default 50) in which the object rests
-    on its support, then a **hold phase** (``hold_steps``, default 50) in which it is lifted and friction
-    must carry its weight.
+    The default task grasps real objects: the ``kitchen`` use case of the object catalogue (below: apples,
+    kiwifruit, soft cheese, gelatin gel, at hand scale) under the hoop-strain damage rule. The paper's own task
+    (its 250 mm ring, the crush-fraction rule) is ``PneuNetGrasp-Paper-v0`` (:data:`pneunet_env.PAPER_TASK`).
+
+    An episode is one grasp: a **squeeze phase** (``squeeze_steps``) in which the object rests on its support,
+    then a **hold phase** (``hold_steps``) in which it is lifted and friction must carry its weight.
+
+    ## Default Task
+
+    The defaults of ``EnvConfig()`` (``configs/env/default.yaml`` lists every key, with its unit; a test checks
+    this table against them):
+
+    | Config key                | Default       | Meaning                                                   |
+    |---------------------------|---------------|-----------------------------------------------------------|
+    | ``use_case``              | ``kitchen``   | the catalogue's classes drawn, by weight (see Catalogue)  |
+    | ``damage_rule``           | ``hoop_strain`` | damaged past the failure stress or the hoop strain      |
+    | ``max_pressure_kpa``      | 60            | pressure ceiling ``p_max`` (kPa; ``p~ = 1.2``)            |
+    | ``max_pressure_step_kpa`` | 3             | pressure change at ``|action| = 1`` (kPa)                 |
+    | ``squeeze_steps``         | 50            | steps of the squeeze phase                                |
+    | ``hold_steps``            | 50            | steps of the hold phase (then truncation)                 |
+    | ``friction_coefficient``  | 0.5           | ``mu_f`` between the actuator and the object              |
+    | ``grip_faces``            | 2             | opposed faces that share the weight                       |
+    | ``reward_hold``           | 0.02          | each hold-phase step held, intact                         |
+    | ``reward_success``        | 1             | the episode's end reached, held, intact                   |
+    | ``penalty_damage``        | 2             | the step the object is damaged                            |
+    | ``penalty_slip``          | 1             | the step the object slips                                 |
+    | ``terminate_on_damage``   | true          | damage ends the episode                                   |
+    | ``terminate_on_slip``     | true          | a drop ends the episode                                   |
+    | ``observe_volume``        | false         | add the chamber's volume change to the observation        |
 
     ## Action Space
 
-    ``Box(-1, 1, (1,), float32)``: the pressure change, in units of ``max_pressure_step_kpa`` (3 kPa).
+    ``Box(-1, 1, (1,), float32)``: the pressure change, in units of ``max_pressure_step_kpa``.
 
-    | Num | Action          | Min | Max | Unit                    |
-    |-----|-----------------|-----|-----|-------------------------|
+    | Num | Action          | Min | Max | Unit                      |
+    |-----|-----------------|-----|-----|---------------------------|
     | 0   | pressure change | -1  | 1   | ``max_pressure_step_kpa`` |
 
-    The pressure is then clipped to ``[0, max_pressure_kpa]`` (60 kPa, ``p~ = 1.2``). A finite action
-    outside ``[-1, 1]`` is clipped and ``info["action_clipped"]`` is true; a NaN or infinite action raises
-    ``ValueError``.
+    The pressure is then clipped to ``[0, max_pressure_kpa]``. A finite action outside ``[-1, 1]`` is clipped and
+    ``info["action_clipped"]`` is true; a NaN or infinite action raises ``ValueError``. A torch tensor is read as
+    its value (detached: the env is not differentiable).
 
     ## Observation Space
 
     ``Box(0, 1, (1,), float32)`` by default (proprioception only):
 
-    | Num | Observation                                    | Min  | Max | Unit                               |
-    |-----|------------------------------------------------|------|-----|------------------------------------|
-    | 0   | pressure ``p / p_max``                         | 0    | 1   | fraction of ``max_pressure_kpa``   |
+    | Num | Observation                                    | Min  | Max | Unit                                |
+    |-----|------------------------------------------------|------|-----|-------------------------------------|
+    | 0   | pressure ``p / p_max``                         | 0    | 1   | fraction of ``max_pressure_kpa``    |
     | 1   | chamber volume change (``observe_volume`` only)| -inf | inf | of the free actuator's at ``p_max`` |
 
     The volume entry is 0 at rest and about 1 for the free actuator at ``p_max`` (an object only lowers it);
     its bounds are left open because a round-off of order 1e-16 below 0 can occur at rest.
 
+    ## Catalogue
+
+    Each episode draws a class of the ``kitchen`` use case by its weight, then the object's properties from the
+    class's literature ranges (:mod:`pneunet_env.catalogue`, ``pneunet_env/data/objects.yaml``, each row with its
+    sources): modulus, density and failure stress log-uniform; radius, depth and failure strain uniform.
+
+    | Class       | Weight | ``E`` (kPa) | ``R`` (mm) | ``H`` (mm) | ``rho`` (kg/m^3) | ``eps_f``  | ``sigma_f`` (kPa) |
+    |-------------|--------|-------------|------------|------------|------------------|------------|-------------------|
+    | apple       | 0.30   | 810-3280    | 17.6-32.5  | 4.4-8.8    | 740-890          | 0.11-0.312 | 235-444           |
+    | kiwifruit   | 0.25   | 200-400     | 17.5-27.5  | 4.4-8.7    | 1020-1095        | 0.05-0.15  | 20-30             |
+    | soft_cheese | 0.25   | 77-230      | 15-40      | 3.75-7.5   | 1050-1150        | 0.33-0.59  | 46-62             |
+    | gelatin_gel | 0.20   | 4.3-81      | 15-40      | 3.75-7.5   | 1000-1050        | 0.25-0.35  | 1.1-24            |
+
+    The kitchen's ``sponge_rubber`` and ``bread`` lie outside eq. 3.2's annulus model and are never drawn.
+    ``use_case`` picks another use case (``lab_bench``, ``catalogue_uniform``), ``class_weights`` any weights;
+    with both ``None`` the objects section's ranges are drawn instead (the paper's ring).
+
     ## Rewards
 
-    | Event                                              | Reward                    |
-    |----------------------------------------------------|---------------------------|
-    | each hold-phase step with the object held, intact  | ``+reward_hold`` (0.02)   |
-    | the episode's last step reached, held, intact      | ``+reward_success`` (1)   |
-    | the object is damaged (the step it happens)        | ``-penalty_damage`` (2)   |
-    | the object slips / is dropped (the step it happens)| ``-penalty_slip`` (1)     |
+    | Event                                              | Reward              |
+    |----------------------------------------------------|---------------------|
+    | each hold-phase step with the object held, intact  | ``+reward_hold``    |
+    | the episode's last step reached, held, intact      | ``+reward_success`` |
+    | the object is damaged (the step it happens)        | ``-penalty_damage`` |
+    | the object slips / is dropped (the step it happens)| ``-penalty_slip``   |
 
     A full successful episode earns ``hold_steps * reward_hold + reward_success = 2``.
 
-    **Damage**: the contact traction exceeds the object's failure stress ``3 eps_f mu_obj``, or the
-    indentation exceeds ``crush_fraction`` times its thickness. **Slip** (hold phase): the traction is
-    below ``rho g H / (grip_faces mu_f)``, the weight per unit contact area over the friction. See
-    ``docs/env.md`` for the physics of each threshold.
+    **Damage** (``damage_rule: hoop_strain``; irreversible): the object is *overstressed* when the contact
+    traction exceeds its failure stress ``sigma_f``, and *crushed* when the hoop strain ``delta kappa_obj`` of its
+    indentation ``delta`` exceeds its failure strain ``eps_f`` (eq. 3.2's annulus: an indentation shrinks the whole
+    ring). The paper task's rule (``damage_rule: crush_fraction``) is overstressed above ``3 eps_f mu_obj``, crushed
+    when ``delta > crush_fraction H``. **Slip** (hold phase only): the traction is below
+    ``rho g H / (grip_faces mu_f)``, the weight per unit contact area over the friction. See ``docs/env.md`` for
+    the physics of each threshold.
 
     ## Starting State
 
-    Pressure 0, the actuator at rest (flat, unstrained). A new object is drawn from ``self.np_random``:
-    shear modulus log-uniform in ``object_shear_modulus_kpa`` (0.1 to 1500 kPa, i.e. ``k~`` from 6.8e-6 to
-    0.10 at the paper's size), thickness, curvature, density and failure strain from their ranges (fixed
-    at the paper's values by default). ``reset(options={...})`` pins any of ``object_stiffness`` (``k~``),
-    ``object_shear_modulus_kpa``, ``object_curvature`` (``w kappa_obj``), ``object_curvature_per_m``,
-    ``object_thickness_mm``, ``object_density_kg_m3``, ``object_failure_strain``.
+    Pressure 0, the actuator at rest (flat, unstrained). A new object is drawn from ``self.np_random``: a
+    catalogue class, then its properties (see Catalogue), so ``reset(seed=s)`` gives the same object every time.
+    ``reset(options={...})`` pins any of ``object_stiffness`` (``k~``), ``object_shear_modulus_kpa``,
+    ``object_curvature`` (``w kappa_obj``), ``object_curvature_per_m``, ``object_thickness_mm``,
+    ``object_density_kg_m3``, ``object_failure_strain`` (the other properties are still those drawn).
 
     ## Episode End
 
@@ -95,12 +140,22 @@ class PneuNetGraspEnv(gym.Env):
       (Configurable: ``terminate_on_damage``, ``terminate_on_slip``.)
     * **Truncation**: the hold phase ends (``squeeze_steps + hold_steps`` = 100 steps; this is the
       registered ``max_episode_steps``). A solve that fails to converge keeps the previous state and
-      truncates, with ``info["solver_failed"]`` (it has never happened in testing).
+      truncates, with ``info["solver_failed"]``.
+
+    ``info["is_success"]`` is set on the last step of every episode: held to the end, intact.
 
     ## Version History
 
-    * v0: the paper's object (a 250 mm ring, 10 mm thick) with its shear modulus log-uniform in 0.1-1500 kPa.
-    * ``info["is_success"]`` is set on the last step of every episode: held to the end, intact.
+    * v0 (0.6): the catalogue's apple is its flesh's Young's modulus only, 0.81-3.28 MPa, with its failure strain
+      0.11-0.312 and stress 235-444 kPa (0.5's whole-fruit moduli are dropped): a seed draws other apples than
+      under 0.5.
+    * v0 (0.5): the default objects changed: the catalogue's apple widened to 0.81-4.88 MPa (was 0.81-2.27 MPa), so
+      the same seed drew a stiffer apple; results from before 0.5 are not comparable seed for seed (the id was
+      kept).
+    * v0 (0.3): the default task became the catalogue's ``kitchen`` under the hoop-strain rule; the reset info
+      names the object's class (``object_class``). The paper's ring moved to ``PneuNetGrasp-Paper-v0``.
+    * v0 (0.1, 0.2): the paper's object (a 250 mm ring, 10 mm thick) with its shear modulus log-uniform in
+      0.1-1500 kPa, and the crush-fraction damage rule.
 
     ## Arguments
 
@@ -119,8 +174,8 @@ class PneuNetGraspEnv(gym.Env):
     ``action_clipped``) and the solver's status (``snapped``, ``solver_converged``, ``solver_failed``); the reset
     info adds the object's constants (``object_stiffness`` ``k~``, ``object_shear_modulus_kpa``, ... and its
     thresholds: :data:`pneunet_env.task.OBJECT_KEYS`). ``info_level="full"`` gives every key of
-    :func:`pneunet_env.task.build_info` every step (44: the dimensionless state, the object, the thresholds'
-    ratios, the solver's diagnostics). ``is_success`` is added on an episode's last step.
+    :func:`pneunet_env.task.build_info` every step (:data:`pneunet_env.task.FULL_KEYS`: the dimensionless state, the
+    object, the thresholds' ratios, the solver's diagnostics). ``is_success`` is added on an episode's last step.
 
     ## Rendering
 
@@ -133,68 +188,38 @@ class PneuNetGraspEnv(gym.Env):
     picture in a matplotlib window (matplotlib is imported only then).
     """
 
+    env_id = "PneuNetGrasp-v0"
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 20}
 
     def __init__(self, render_mode: str | None = None, config: Any = None, info_level: str = "lean",
                  **overrides: Any) -> None:
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
-            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
-        if info_level not in task.INFO_LEVELS:
-            raise ValueError(f"info_level must be one of {task.INFO_LEVELS}, got {info_level!r}")
-        self.config: EnvConfig = load_config(config, **overrides)
-        self.render_mode = render_mode
-        self.info_level = info_level
+        super().__init__(render_mode, config, info_level, overrides)
         self._params = task.EnvParams.from_config(self.config)
+        self._contact = task.newton_contact
         self._class_names = task.class_names(self.config)
-        self.action_space = spaces.Box(-1.0, 1.0, (1,), np.float32)
         self.observation_space = observation_space(self.config)
-        self._state: task.EnvState | None = None
-        self._ended = False
         self._warned = False
         self._static_info: dict[str, Any] | None = None
         self._viewer = None
         self._render_name = ""
 
-    # ---- the object and state, for users -------------------------------------------------------
-    @property
-    def state(self) -> task.EnvState | None:
-        """The whole state (:class:`pneunet_env.task.EnvState`; ``None`` before ``reset``)."""
-        return self._state
-
-    @property
-    def equilibrium(self) -> Equilibrium | None:
-        """The current quasi-static state (an :class:`~pneunet_env.physics.solver.Equilibrium`)."""
-        return None if self._state is None else self._state.eq
-
-    # ---- Gymnasium API -----------------------------------------------------------------------------
-    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
-        super().reset(seed=seed)
-        self._ended = False
-        if options is not None and not isinstance(options, dict):
-            raise ValueError(f"options must be a dict of object properties to pin, got {options!r}")
-        obj = task.sample_object(self.np_random, self.config, pinned=options)
+    # ---- the episode's object ----------------------------------------------------------------------
+    def _accept_object(self, obj) -> None:
         check_object(obj.stiffness, obj.curvature)
         self._warned = task.warn_if_beyond_convergence(obj, self._warned)
-        self._state = state = task.reset_state(obj, self._params, task.newton_contact)
-        self._static_info = task.object_info(obj, state.thresholds, self._params.task)
+
+    def _after_reset(self, obj, options: dict[str, Any] | None) -> None:
+        self._static_info = task.object_info(obj, self._state.thresholds, self._params.task)
         self._static_info["object_class"] = task.class_name(self._class_names, obj.class_id)
         # the frame's label names the object by its class, unless its stiffness was pinned (then by its k~)
         pinned_material = options is not None and any(
             options.get(k) is not None for k in ("object_stiffness", "object_shear_modulus_kpa"))
         self._render_name = "" if pinned_material or obj.class_id < 0 else self._static_info["object_class"]
-        obs = task.observation(state.command, state.eq.volume_change, self._params.task, self._params.volume_scale)
-        info = task.build_info(state, self._params.task, None, self.info_level, self._static_info)
-        if self.render_mode == "human":
-            self.render()
-        return obs, info
 
-    def step(self, action):
-        out = single_env_step(self, action, task.newton_contact, lambda res: task.build_info(
-            res.state, self._params.task, res, self.info_level, self._static_info))
-        if self.render_mode == "human":
-            self.render()
-        return out
+    def _info(self, res: task.Step | None) -> dict[str, Any]:
+        return task.build_info(self._state, self._params.task, res, self.info_level, self._static_info)
 
+    # ---- rendering ---------------------------------------------------------------------------------
     def render(self):
         if self.render_mode is None:
             gym.logger.warn(
@@ -226,26 +251,6 @@ class PneuNetGraspEnv(gym.Env):
             self._viewer.close()
             self._viewer = None
         super().close()
-
-
-def single_env_step(env, action, contact: task.Contact, make_info):
-    """One Gymnasium ``step`` of a single env (this one, or the rigid jaw's) around :func:`pneunet_env.task.step`.
-
-    ``env`` holds ``_state``, ``_params`` and ``_ended``; ``make_info(res)`` builds its info. Stepping before ``reset``
-    or past an episode's end raises ``ResetNeeded``; ``is_success`` is added on the episode's last step.
-    """
-    if env._state is None:
-        raise ResetNeeded("call reset() before step()")
-    if env._ended:
-        raise ResetNeeded("the episode has ended (terminated or truncated): call reset() before step()")
-    res = task.step(env._state, task.single_action(action), env._params, contact)
-    env._state = res.state
-    info = make_info(res)
-    terminated, truncated = bool(res.terminated), bool(res.truncated)
-    if terminated or truncated:
-        info["is_success"] = bool(res.outcome.success)
-        env._ended = True
-    return res.obs, float(res.reward), terminated, truncated, info
 
 
 def observation_space(config: EnvConfig) -> spaces.Box:

@@ -19,7 +19,9 @@ from __future__ import annotations
 import dataclasses
 import functools
 import operator
-from collections.abc import Sequence
+import os
+import threading
+from collections.abc import Iterable, Sequence
 from typing import Any
 
 import gymnasium as gym
@@ -32,6 +34,8 @@ from gymnasium.vector.utils import batch_space
 from pneunet_env import task
 from pneunet_env.config import EnvConfig, load_config
 from pneunet_env.envs.grasp import observation_space
+from pneunet_env.envs.streams import PCG64Streams
+from pneunet_env.envs.streams import seed_words as _seed_words
 from pneunet_env.fused import HAVE_FUSED, fused_step, new_cache
 from pneunet_env.objects import GraspObject
 from pneunet_env.physics.batched import BACKENDS, check_threads
@@ -40,166 +44,6 @@ from pneunet_env.physics.xp import NUMPY, is_torch, to_host, torch_ops
 from pneunet_env.physics.xp import copy as _copy
 
 __all__ = ["PneuNetGraspVectorEnv", "PCG64Streams"]
-
-
-# ------------------------------------------------------------------------------------------------------
-# One random stream per sub-env, advanced as arrays: numpy's PCG64 seeded through SeedSequence
-# ------------------------------------------------------------------------------------------------------
-
-_M32 = np.uint64(0xFFFFFFFF)
-_S32 = np.uint64(32)
-_MASK32 = 0xFFFFFFFF
-# numpy's SeedSequence (bit_generator.pyx): hash constants and a pool of 4 uint32 words.
-_INIT_A, _MULT_A, _INIT_B, _MULT_B = 0x43B0D7E5, 0x931E8875, 0x8B51F9DD, 0x58F38DED
-_MIX_MULT_L, _MIX_MULT_R = 0xCA01F9DD, 0x4973F715
-_POOL = 4
-# PCG64 (pcg64.h): the 128-bit LCG multiplier, as two 64-bit halves.
-_MULT_HI = np.uint64(2549297995355413924)
-_MULT_LO = np.uint64(4865540595714422341)
-_SEED_LIMIT = 1 << (32 * _POOL)
-
-
-def _hashmix(value: np.ndarray, hc: int) -> tuple[np.ndarray, int]:
-    value = value ^ np.uint32(hc)
-    hc = (hc * _MULT_A) & _MASK32
-    value = value * np.uint32(hc)
-    return value ^ (value >> np.uint32(16)), hc
-
-
-def _mix(x: np.ndarray, y: np.ndarray) -> np.ndarray:
-    r = np.uint32(_MIX_MULT_L) * x - np.uint32(_MIX_MULT_R) * y
-    return r ^ (r >> np.uint32(16))
-
-
-def _seed_sequence_words(words: np.ndarray) -> list[np.ndarray]:
-    """``SeedSequence(seed).generate_state(8, uint32)`` for every column of ``words`` ((4, n) uint32: the seed's
-    32-bit words, least significant first, zero-padded; numpy pads a short entropy the same way)."""
-    hc = _INIT_A
-    pool = []
-    for i in range(_POOL):
-        v, hc = _hashmix(words[i], hc)
-        pool.append(v)
-    for i_src in range(_POOL):
-        for i_dst in range(_POOL):
-            if i_src != i_dst:
-                h, hc = _hashmix(pool[i_src], hc)
-                pool[i_dst] = _mix(pool[i_dst], h)
-    hc = _INIT_B
-    out = []
-    for i in range(2 * _POOL):
-        v = pool[i % _POOL] ^ np.uint32(hc)
-        hc = (hc * _MULT_B) & _MASK32
-        v = v * np.uint32(hc)
-        out.append(v ^ (v >> np.uint32(16)))
-    return out
-
-
-def _mulhi64(x: np.ndarray, y: np.uint64) -> np.ndarray:
-    """The high 64 bits of the 128-bit product ``x * y`` (32-bit limbs)."""
-    x0, x1 = x & _M32, x >> _S32
-    y0, y1 = y & _M32, y >> _S32
-    p00, p01, p10, p11 = x0 * y0, x0 * y1, x1 * y0, x1 * y1
-    mid = (p00 >> _S32) + (p01 & _M32) + (p10 & _M32)
-    return p11 + (p01 >> _S32) + (p10 >> _S32) + (mid >> _S32)
-
-
-def _lcg_step(hi, lo, ihi, ilo):
-    """``state * MULT + inc`` modulo 2**128, states as (high, low) uint64 halves."""
-    nlo = lo * _MULT_LO
-    nhi = _mulhi64(lo, _MULT_LO) + lo * _MULT_HI + hi * _MULT_LO
-    lo2 = nlo + ilo
-    return nhi + ihi + (lo2 < nlo).astype(np.uint64), lo2
-
-
-class PCG64Streams:
-    """N independent random streams, each numpy's ``Generator(PCG64(SeedSequence(seed_i)))``, drawn as arrays.
-
-    Stream ``i`` seeded with ``seed_i`` yields exactly (bit for bit) the doubles of
-    ``np.random.Generator(np.random.PCG64(np.random.SeedSequence(seed_i))).random()``, which is what
-    ``env.reset(seed=seed_i)`` gives a single Gymnasium env as ``env.np_random``. Seeding and drawing are
-    array operations over the streams (numpy's SeedSequence hash and the 128-bit PCG64 LCG with its XSL-RR
-    output, emulated with uint32/uint64 arithmetic), so there is no Python loop over envs.
-    Each stream's state is 32 bytes.
-    """
-
-    def __init__(self, n: int) -> None:
-        self.hi = np.zeros(n, np.uint64)
-        self.lo = np.zeros(n, np.uint64)
-        self.inc_hi = np.zeros(n, np.uint64)
-        self.inc_lo = np.ones(n, np.uint64)
-
-    @property
-    def nbytes(self) -> int:
-        return self.hi.nbytes + self.lo.nbytes + self.inc_hi.nbytes + self.inc_lo.nbytes
-
-    def seed(self, idx: np.ndarray, words: np.ndarray) -> None:
-        """Seed streams ``idx`` from their seeds' 32-bit words ``words`` ((4, len(idx)) uint32, least significant
-        first): what ``PCG64(SeedSequence(seed))`` does."""
-        with np.errstate(over="ignore"):
-            st = _seed_sequence_words(words)
-            v = [st[2 * k].astype(np.uint64) | (st[2 * k + 1].astype(np.uint64) << _S32) for k in range(4)]
-            s_hi, s_lo, q_hi, q_lo = v
-            # pcg_setseq_128_srandom_r: inc = (initseq << 1) | 1; state = 0; step; state += initstate; step.
-            ihi = (q_hi << np.uint64(1)) | (q_lo >> np.uint64(63))
-            ilo = (q_lo << np.uint64(1)) | np.uint64(1)
-            hi, lo = _lcg_step(np.zeros_like(s_hi), np.zeros_like(s_lo), ihi, ilo)
-            lo2 = lo + s_lo
-            hi = hi + s_hi + (lo2 < lo).astype(np.uint64)
-            hi, lo = _lcg_step(hi, lo2, ihi, ilo)
-        self.hi[idx], self.lo[idx], self.inc_hi[idx], self.inc_lo[idx] = hi, lo, ihi, ilo
-
-    def random(self, idx: np.ndarray, count: int) -> np.ndarray:
-        """``count`` doubles in ``[0, 1)`` from each stream ``idx``: shape ``(count, len(idx))``; advances them."""
-        hi, lo, ihi, ilo = self.hi[idx], self.lo[idx], self.inc_hi[idx], self.inc_lo[idx]
-        out = np.empty((count, len(idx)))
-        with np.errstate(over="ignore"):
-            for j in range(count):
-                hi, lo = _lcg_step(hi, lo, ihi, ilo)
-                x = hi ^ lo
-                rot = hi >> np.uint64(58)
-                u = (x >> rot) | (x << ((np.uint64(64) - rot) & np.uint64(63)))  # XSL-RR output
-                out[j] = (u >> np.uint64(11)).astype(np.float64) * (1.0 / 9007199254740992.0)
-        self.hi[idx], self.lo[idx] = hi, lo
-        return out
-
-    def generator(self, i: int) -> np.random.Generator:
-        """A ``np.random.Generator`` in the state of stream ``i`` (a copy: drawing from it does not advance ``i``)."""
-        bg = np.random.PCG64()
-        bg.state = {
-            "bit_generator": "PCG64",
-            "state": {"state": (int(self.hi[i]) << 64) | int(self.lo[i]),
-                      "inc": (int(self.inc_hi[i]) << 64) | int(self.inc_lo[i])},
-            "has_uint32": 0,
-            "uinteger": 0,
-        }
-        return np.random.Generator(bg)
-
-
-def _seed_words(seeds: Sequence[int] | int, n: int) -> np.ndarray:
-    """The (4, n) uint32 words of the seeds ``seed + i`` (an int) or of a list of n ints; ``ValueError`` if invalid."""
-    words = np.zeros((_POOL, n), np.uint32)
-    if isinstance(seeds, (int, np.integer)) and not isinstance(seeds, (bool, np.bool_)):
-        s = int(seeds)
-        if s < 0 or s + n > _SEED_LIMIT:
-            raise ValueError(f"seed must be an integer in [0, 2**128 - num_envs], got {seeds!r}")
-        carry = np.arange(n, dtype=np.uint64)
-        for j in range(_POOL):
-            v = np.uint64((s >> (32 * j)) & _MASK32) + carry
-            words[j] = (v & _M32).astype(np.uint32)
-            carry = v >> _S32
-        return words
-    values = []
-    for i, s in enumerate(seeds):  # a user's list of n seeds is converted once, at reset(seed=[...])
-        try:
-            v = operator.index(s)
-        except TypeError:
-            raise ValueError(f"seed[{i}] must be an integer, got {s!r}") from None
-        if isinstance(s, (bool, np.bool_)) or v < 0 or v >= _SEED_LIMIT:
-            raise ValueError(f"seed[{i}] must be an integer in [0, 2**128), got {s!r}")
-        values.append(v)
-    for j in range(_POOL):
-        words[j] = np.array([(v >> (32 * j)) & _MASK32 for v in values], dtype=np.uint32)
-    return words
 
 
 # ------------------------------------------------------------------------------------------------------
@@ -213,10 +57,83 @@ _MODES = (AutoresetMode.SAME_STEP, AutoresetMode.NEXT_STEP)
 def _autoreset_mode(mode) -> AutoresetMode:
     """``AutoresetMode.SAME_STEP`` or ``NEXT_STEP`` (the enum, its value ``"SameStep"``/``"NextStep"`` or its name)."""
     for m in _MODES:
-        if mode is m or mode == m.value or (isinstance(mode, str) and mode.upper() == m.name):
+        if mode is m or (isinstance(mode, str) and (mode == m.value or mode.upper() == m.name)):
             return m
     raise ValueError(f"autoreset_mode must be AutoresetMode.SAME_STEP or NEXT_STEP (or 'SameStep'/'NextStep'), "
                      f"got {mode!r}")
+
+
+_INT64_MAX = 2**63 - 1
+BYTES_PER_ENV = 4096
+"""An upper estimate of the host memory one sub-env takes, in bytes: its state (300-400 B), a step's temporaries and
+info arrays (1-2 KB measured at N = 20 000, numpy and numba back-ends) and its share of the batched spaces."""
+
+
+def _memory_bytes() -> int | None:
+    """This machine's physical memory in bytes (``None`` where the OS does not say)."""
+    try:
+        return os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
+    except (AttributeError, ValueError, OSError):
+        return None
+
+
+def max_num_envs() -> int:
+    """The largest ``num_envs`` accepted: this machine's physical memory over :data:`BYTES_PER_ENV` (at least 1;
+    ``2**31 - 1`` where the memory is unknown)."""
+    mem = _memory_bytes()
+    return 2**31 - 1 if mem is None else max(1, mem // BYTES_PER_ENV)
+
+
+def _check_num_envs(num_envs) -> int:
+    """``num_envs`` as an int in ``[1, max_num_envs()]``; ``ValueError`` naming it otherwise."""
+    try:
+        if isinstance(num_envs, (bool, np.bool_)):
+            raise TypeError
+        n = operator.index(num_envs)
+    except TypeError:
+        raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}") from None
+    if n < 1:
+        raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
+    top = max_num_envs()
+    if n > top:
+        raise ValueError(f"num_envs={n} is too large: it would need about {n * BYTES_PER_ENV / 2**30:.3g} GiB "
+                         f"({BYTES_PER_ENV} bytes per sub-env), more than this machine's memory allows "
+                         f"(at most {top} envs)")
+    return n
+
+
+def _torch_device(device):
+    """``device`` as a ``torch.device`` that can hold data (``None``: the CPU); ``ValueError`` naming it otherwise
+    (an unknown or unavailable device, or ``"meta"``, which has shapes but no data)."""
+    try:
+        import torch
+    except ImportError:
+        raise ValueError("backend='torch' needs torch (pip install torch)") from None
+    try:
+        dev = torch.device("cpu" if device is None else device)
+    except (RuntimeError, TypeError, ValueError) as exc:
+        raise ValueError(f"device must name an available torch device, got {device!r} ({exc})") from None
+    if dev.type == "meta":
+        raise ValueError(f"device must be one that holds data (cpu, cuda, mps, ...), got {device!r}: a 'meta' "
+                         f"tensor has a shape but no values")
+    try:
+        torch.zeros(1, device=dev).add_(1).cpu().item()  # a round trip: the device exists and holds values
+    except (RuntimeError, TypeError, AssertionError, NotImplementedError) as exc:
+        raise ValueError(f"device must name an available torch device, got {device!r} ({exc})") from None
+    return dev
+
+
+def _pin_rows(pins: dict[str, Any], idx: np.ndarray, n: int) -> dict[str, Any]:
+    """The reset pins of the sub-envs ``idx``: an ``(n,)`` value gives each its own entry, anything else is shared
+    (and checked by :func:`pneunet_env.task.object_from_uniforms`); ``ValueError`` naming a ragged value."""
+    out = {}
+    for k, v in pins.items():
+        try:
+            a = np.asarray(to_host(v))
+        except (ValueError, TypeError):
+            raise ValueError(f"reset option {k!r} must be a number or an ({n},) array of numbers, got {v!r}") from None
+        out[k] = a[idx] if a.shape == (n,) else v
+    return out
 
 
 def _zero_like(a):
@@ -308,14 +225,18 @@ class PneuNetGraspVectorEnv(VectorEnv):
       ``"torch"``. With ``"torch"`` the whole state lives on ``device`` as float64 tensors and the step is the same
       pure :func:`pneunet_env.task.step` on tensors with the masked solver (:mod:`pneunet_env.physics.masked`):
       observations (float32), rewards (float64), flags and info values are **torch tensors on the device**
-      (``obs.cpu().numpy()`` gives numpy; actions may be tensors or arrays). Objects are still drawn from the
+      (``obs.cpu().numpy()`` gives numpy; actions may be tensors or arrays; a tensor that requires grad is
+      detached, so no autograd graph is kept from step to step). Objects are still drawn from the
       per-env PCG64 streams on the host (the same draws as every other backend) and sent to the device at reset.
       ``final_obs`` is then an ``(N, obs_dim)`` tensor masked by ``_final_obs`` (not an object array).
-    * ``device``: torch only: ``"cpu"`` (default), ``"cuda"``, ``"cuda:1"``, ...
+    * ``device``: torch only: ``"cpu"`` (default), ``"cuda"``, ``"cuda:1"``, ``"mps"``, ...: a device that holds data
+      (checked by a round trip at construction; ``"meta"`` is refused).
     * ``compile``: torch only: run the solver's round through ``torch.compile`` (pays on a GPU; see the benchmark).
     * ``parallel``: numba only: split the solve over the cores (numba's threads, ``NUMBA_NUM_THREADS``); ``None``
       from :data:`pneunet_env.physics.batched.PARALLEL_MIN_ENVS` envs on. Pass ``False`` when other processes keep the
-      cores busy: numba's threads then wait on each other (a step can take 10x longer).
+      cores busy: numba's threads then wait on each other (a step can take 10x longer). ``True``, ``False`` or
+      ``None`` only (``TypeError`` otherwise: a string such as ``"no"`` is not read as a flag); ``True`` with
+      ``backend="numpy"`` or ``"torch"`` is refused.
     * ``fused``: numba only (default there): the whole step as one compiled loop over the envs
       (:func:`pneunet_env.fused.fused_step`: the pressure update, the solve, the rules and the observation), bit for
       bit :func:`pneunet_env.task.step`'s result; ``False``: the array step around the batched solve.
@@ -325,9 +246,22 @@ class PneuNetGraspVectorEnv(VectorEnv):
     * ``num_threads``: numba only: the parallel loop's threads (``None``: chosen by N,
       :func:`pneunet_env.physics.batched.threads_for`: one per 512 envs, at most ``NUMBA_NUM_THREADS``).
 
+    * ``num_envs``: at most :func:`max_num_envs` (this machine's memory over :data:`BYTES_PER_ENV`), so that a
+      too-large batch is refused by name at once rather than failing in an allocation.
+
     ``reset(options=...)`` takes the single env's pins (applied to every sub-env reset by the call; a value
     may be an ``(N,)`` array, one per sub-env) and ``"reset_mask"`` (an ``(N,)`` bool array: reset only
-    those; the others keep their state and have ``_key`` masks false in the info).
+    those; the others keep their state and have ``_key`` masks false in the info). A mask must reset at least one
+    sub-env (all false raises ``ValueError``, as Gymnasium's ``SyncVectorEnv`` does).
+
+    ## Threads and pickling
+
+    One env is stepped by one thread at a time: a ``step`` or ``reset`` that starts while another runs (from
+    another thread) raises ``RuntimeError`` rather than losing or doubling steps; use one env per thread. The env
+    pickles (``pickle``, ``cloudpickle``, ``copy.deepcopy``): the unpickled copy has the same state and random
+    streams and steps on exactly as the original would (the backend's compiled functions are rebuilt on loading).
+    ``gym.make_vec(..., vectorization_mode="async")`` runs single envs in subprocesses (their factories pickle); to
+    hand this vector env to another process, send it or a factory (``functools.partial(PneuNetGraspVectorEnv, 64)``).
 
     ## Info
 
@@ -360,51 +294,52 @@ class PneuNetGraspVectorEnv(VectorEnv):
         info_keys: Sequence[str] | None = None,
         **overrides: Any,
     ) -> None:
-        try:
-            n = operator.index(num_envs)
-        except TypeError:
-            raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}") from None
-        if n < 1:
-            raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
-        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+        n = _check_num_envs(num_envs)
+        if render_mode is not None and not (isinstance(render_mode, str)
+                                            and render_mode in self.metadata["render_modes"]):
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
-        if backend not in BACKENDS:
+        if not isinstance(backend, str) or backend not in BACKENDS:
             raise ValueError(f"backend must be one of {BACKENDS}, got {backend!r}")
+        if parallel is not None and not isinstance(parallel, (bool, np.bool_)):
+            raise TypeError(f"parallel must be True, False or None, got {parallel!r}")
+        parallel = None if parallel is None else bool(parallel)
+        if parallel and backend in ("numpy", "torch"):
+            raise ValueError(f"parallel=True is for the numba backend only, got it with backend={backend!r}")
         if backend == "torch" and num_threads is not None:
             raise ValueError(f"num_threads is for the numba backend (torch: torch.set_num_threads), "
                              f"got {num_threads!r}")
+        if backend == "numpy" and num_threads is not None:
+            raise ValueError(f"num_threads is for the numba backend only, got {num_threads!r} with backend='numpy'")
+        try:
+            check_threads(num_threads)
+        except ValueError as exc:
+            raise ValueError(f"num_threads: {exc}") from None
+        if not isinstance(compile, (bool, np.bool_)):
+            raise ValueError(f"compile must be True or False, got {compile!r}")
+        compile = bool(compile)
         if backend != "torch" and (device is not None or compile):
             raise ValueError(f"device and compile are for backend='torch' only, got device={device!r}, "
                              f"compile={compile!r} with backend={backend!r}")
-        if not isinstance(compile, bool):
-            raise ValueError(f"compile must be True or False, got {compile!r}")
-        if backend == "torch":
-            try:
-                import torch
-            except ImportError:
-                raise ValueError("backend='torch' needs torch (pip install torch)") from None
-            try:
-                self._xp = torch_ops("cpu" if device is None else device)
-                torch.zeros(1, device=self._xp.device)
-            except (RuntimeError, TypeError, AssertionError) as exc:
-                raise ValueError(f"device must name an available torch device, got {device!r} ({exc})") from None
-            self.device = self._xp.device
-        else:
-            self._xp = NUMPY
-            self.device = None
-        if info_level not in task.INFO_LEVELS:
+        self.device = _torch_device(device) if backend == "torch" else None
+        if not isinstance(info_level, str) or info_level not in task.INFO_LEVELS:
             raise ValueError(f"info_level must be one of {task.INFO_LEVELS}, got {info_level!r}")
         if max_episode_steps is not None:
             try:
+                if isinstance(max_episode_steps, (bool, np.bool_)):
+                    raise TypeError
                 max_episode_steps = operator.index(max_episode_steps)
             except TypeError:
                 raise ValueError(f"max_episode_steps must be a positive integer or None, got {max_episode_steps!r}") \
                     from None
-            if max_episode_steps < 1:
-                raise ValueError(f"max_episode_steps must be a positive integer or None, got {max_episode_steps!r}")
+            if not 1 <= max_episode_steps <= _INT64_MAX:  # the step counters are int64
+                raise ValueError(f"max_episode_steps must be an integer in [1, 2**63 - 1] or None, got "
+                                 f"{max_episode_steps!r}")
         if info_keys is not None:
-            if isinstance(info_keys, str) or not all(isinstance(k, str) for k in info_keys):
+            keys = None if isinstance(info_keys, (str, bytes)) or not isinstance(info_keys, Iterable) \
+                else tuple(info_keys)
+            if keys is None or not all(isinstance(k, str) for k in keys):
                 raise ValueError(f"info_keys must be a sequence of key names (or None), got {info_keys!r}")
+            info_keys = keys
             valid = task.info_keys(info_level)
             unknown = sorted(set(info_keys) - set(valid))
             if unknown:
@@ -421,15 +356,10 @@ class PneuNetGraspVectorEnv(VectorEnv):
         self.autoreset_mode = _autoreset_mode(autoreset_mode)
         self.metadata = {**type(self).metadata, "autoreset_mode": self.autoreset_mode}
         self.config: EnvConfig = load_config(config, **overrides)
-        self._params = task.EnvParams.from_config(self.config)
+        # the array namespace, chosen once and carried in the params (the task's functions never test their input)
+        self._params = task.EnvParams.from_config(self.config, NUMPY if self.device is None else torch_ops(self.device))
         self.object_class_names: tuple[str, ...] = task.class_names(self.config)
         """The catalogue classes, by the integer code of ``info["object_class"]`` (-1: drawn from ranges)."""
-        if backend == "torch":
-            self._contact = functools.partial(task.torch_contact_batch, compile=compile)
-        else:
-            check_threads(num_threads)
-            self._contact = functools.partial(task.newton_contact_batch, backend=backend, parallel=parallel,
-                                              threads=num_threads)
         numba_backend = backend == "numba" or (backend == "auto" and HAVE_FUSED)
         if fused is None:
             fused = numba_backend
@@ -437,13 +367,13 @@ class PneuNetGraspVectorEnv(VectorEnv):
             raise ValueError(f"fused must be True (numba backend only) or False, got {fused!r} with "
                              f"backend={backend!r}")
         self.fused = fused
+        self._compile = compile
+        self._num_threads = num_threads
         if fused:
             # the energy evaluation each env's last step ended on: the next step's first (fused.fused_step)
             self._ev_cache = new_cache(n)
-            self._step_fn = functools.partial(fused_step, params=self._params, parallel=parallel, threads=num_threads,
-                                              cache=self._ev_cache)
-        else:
-            self._step_fn = functools.partial(task.step, params=self._params, contact=self._contact)
+        self._busy = threading.Lock()  # the re-entrancy guard of step/reset: one thread at a time
+        self._build_backend()
         self.single_action_space = spaces.Box(-1.0, 1.0, (1,), np.float32)
         self.single_observation_space = observation_space(self.config)
         self.action_space = batch_space(self.single_action_space, n)
@@ -454,6 +384,45 @@ class PneuNetGraspVectorEnv(VectorEnv):
         self._obs: np.ndarray | None = None
         self._pending = self._xp.full(n, False, "bool")  # NEXT_STEP: sub-envs to reset on the next step
         self._warned = False
+
+    def _build_backend(self) -> None:
+        """The array namespace and the step function of the backend (rebuilt on unpickling: they hold closures)."""
+        if self.backend == "torch":
+            self._xp = torch_ops(self.device)
+            self._contact = functools.partial(task.torch_contact_batch, compile=self._compile)
+        else:
+            self._xp = NUMPY
+            self._contact = functools.partial(task.newton_contact_batch, backend=self.backend, parallel=self.parallel,
+                                              threads=self._num_threads)
+        if self.fused:
+            self._step_fn = functools.partial(fused_step, params=self._params, parallel=self.parallel,
+                                              threads=self._num_threads, cache=self._ev_cache)
+        else:
+            self._step_fn = functools.partial(task.step, params=self._params, contact=self._contact)
+
+    # ---- pickling ------------------------------------------------------------------------------------------
+    def __getstate__(self) -> dict[str, Any]:
+        """The env's state without what cannot be pickled (the backend's namespace and step function, the guard's
+        lock): :meth:`__setstate__` rebuilds them, so an unpickled env steps on exactly as the original would."""
+        if self._busy.locked():
+            raise RuntimeError(f"{type(self).__name__} cannot be pickled while a step or reset runs in another "
+                               f"thread")
+        state = self.__dict__.copy()
+        for key in ("_xp", "_contact", "_step_fn", "_busy"):
+            state.pop(key, None)
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        self._busy = threading.Lock()
+        self._build_backend()
+
+    # ---- the re-entrancy guard ------------------------------------------------------------------------------
+    def _enter(self, what: str) -> None:
+        if not self._busy.acquire(blocking=False):
+            raise RuntimeError(f"{type(self).__name__}.{what}() called while another step() or reset() of the same "
+                               f"env is running (from another thread, or re-entered): a vector env is stepped by one "
+                               f"thread at a time")
 
     # ---- state, for users ------------------------------------------------------------------------------
     @property
@@ -496,24 +465,38 @@ class PneuNetGraspVectorEnv(VectorEnv):
 
     # ---- Gymnasium API -----------------------------------------------------------------------------------
     def reset(self, *, seed: int | Sequence[int | None] | None = None, options: dict[str, Any] | None = None):
-        """Reset all sub-envs (or those of ``options["reset_mask"]``); see the class docstring for seeds."""
+        """Reset all sub-envs (or those of ``options["reset_mask"]``, which must reset at least one, as Gymnasium's
+        vector envs require); see the class docstring for seeds. One thread at a time (``RuntimeError`` otherwise)."""
+        self._enter("reset")
+        try:
+            return self._reset(seed, options)
+        finally:
+            self._busy.release()
+
+    def _reset(self, seed, options):
         n = self.num_envs
         if options is not None and not isinstance(options, dict):
             raise ValueError(f"options must be a dict (object pins, 'reset_mask'), got {options!r}")
         pins = dict(options or {})
         mask = pins.pop("reset_mask", None)
         if mask is not None:
-            mask = np.asarray(to_host(mask))
+            try:
+                mask = np.asarray(to_host(mask))
+            except (ValueError, TypeError):
+                raise ValueError(f"options['reset_mask'] must be a bool array of shape ({n},), got {mask!r}") from None
             if mask.dtype != bool or mask.shape != (n,):
                 raise ValueError(f"options['reset_mask'] must be a bool array of shape ({n},), got "
                                  f"{mask.dtype} {mask.shape}")
+            if not mask.any():  # as gymnasium.vector.SyncVectorEnv.reset
+                raise ValueError(f"options['reset_mask'] must reset at least one sub-env (a True value), got all "
+                                 f"{n} False: to reset none, do not call reset")
             if self._state is None and not mask.all():
                 raise ValueError("the first reset must reset every sub-env (reset_mask all true)")
             if mask.all():
                 mask = None  # every sub-env: a full reset
         idx = np.arange(n) if mask is None else np.flatnonzero(mask)
         self._seed(seed, idx)
-        pins = {k: (np.asarray(v)[idx] if np.ndim(v) == 1 and np.shape(v) == (n,) else v) for k, v in pins.items()}
+        pins = _pin_rows(pins, idx, n)
         obj = self._draw(idx, pins)
         if mask is None:
             self._pending = self._xp.full(n, False, "bool")
@@ -607,36 +590,37 @@ class PneuNetGraspVectorEnv(VectorEnv):
         xp = self._xp
         base = xp.full(n, True, "bool") if mask is None else mask
         out: dict[str, Any] = {}
-        for k, v in info.items():
-            if is_torch(v):
-                v = v.expand(n).clone() if v.ndim == 0 else (v.clone() if id(v) in own else v)
-            elif np.ndim(v) == 0:
-                v = np.full(n, v)
-                if xp is not NUMPY:
-                    v = self._to_device(v)
-            elif id(v) in own:
-                v = v.copy()
-            out[k] = v
+        for k, v in info.items():  # every value is an (N,) array of the namespace (solver_status: on the host)
+            out[k] = xp.copy(v) if id(v) in own else v  # the state's own arrays are never handed out
             out["_" + k] = _copy(base)  # one array per key, as Gymnasium's vector envs give
         return out
 
     def step(self, actions):
+        """One step of every sub-env; see the class docstring. On the torch backend a tensor action that requires
+        grad is detached (the env is not differentiable: keeping its graph would grow the memory every step).
+        One thread at a time: a ``step`` or ``reset`` that overlaps another raises ``RuntimeError``."""
+        self._enter("step")
+        try:
+            return self._step(actions)
+        finally:
+            self._busy.release()
+
+    def _step(self, actions):
         if self._state is None:
             raise ResetNeeded("call reset() before step()")
+        if is_torch(actions):
+            actions = actions.detach()  # no autograd graph in the state (the env is not differentiable)
         a = task.batch_actions(actions, self.num_envs, self.device)
         res = self._step_fn(self._state, a)
         terminated, truncated, reward = res.terminated, res.truncated, res.reward
-        if self._xp is NUMPY:
-            terminated = np.asarray(terminated, dtype=bool)
-            truncated = np.asarray(truncated, dtype=bool)
-            reward = np.asarray(reward, dtype=np.float64)
         state = res.state
         if self.max_episode_steps is not None:
             truncated = truncated | (state.task.step >= self.max_episode_steps)
-        obs = res.obs
+        obs = res.obs  # fresh arrays, handed out to no one yet: the autoreset writes into them
         if self.autoreset_mode is AutoresetMode.NEXT_STEP:
             return self._step_next(res, obs, reward, terminated, truncated)
         info = self._info(state, res, None)
+        earlier = self._state
         self._state = state
         done = terminated | truncated
         if not done.any():
@@ -647,7 +631,7 @@ class PneuNetGraspVectorEnv(VectorEnv):
         xp = self._xp
         host_idx = np.flatnonzero(to_host(done))
         idx = self._to_device(host_idx)
-        final_info = {k: self._masked(done, v) for k, v in info.items() if k[0] != "_"}
+        final_info = {k: self._scatter(v, host_idx, idx) for k, v in info.items() if k[0] != "_"}
         final_info["is_success"] = done & res.outcome.success
         final_info = {k2: v2 for k, v in final_info.items() for k2, v2 in ((k, v), ("_" + k, _copy(done)))}
         if xp is NUMPY:
@@ -655,10 +639,10 @@ class PneuNetGraspVectorEnv(VectorEnv):
             final_obs[idx] = np.fromiter(obs[idx], dtype=object, count=idx.size)
         else:  # a tensor (N, obs_dim), masked by _final_obs
             final_obs = xp.where(done[:, None], obs, 0.0)
-        self._state = task.autoreset(state, idx, self._draw(host_idx, {}), self._params, self._contact)
+        self._state = task.autoreset(state, idx, self._draw(host_idx, {}), self._params, self._contact,
+                                     own=task.fresh_arrays(state, earlier))
         self._forget(idx)
-        obs = _copy(obs)
-        obs[idx] = self._observe(self._state)[idx]
+        obs[idx] = self._observe_rows(self._state, idx)
         self._merge_reset_info(info, done, host_idx, idx)
         info["final_obs"], info["_final_obs"] = final_obs, _copy(done)
         info["final_info"], info["_final_info"] = final_info, _copy(done)
@@ -678,10 +662,10 @@ class PneuNetGraspVectorEnv(VectorEnv):
         if pending.any():
             host_idx = np.flatnonzero(to_host(pending))
             idx = self._to_device(host_idx)
-            state = task.autoreset(state, idx, self._draw(host_idx, {}), self._params, self._contact)
+            state = task.autoreset(state, idx, self._draw(host_idx, {}), self._params, self._contact,
+                                   own=task.fresh_arrays(state, self._state))
             self._forget(idx)
-            obs = _copy(obs)
-            obs[idx] = self._observe(state)[idx]
+            obs[idx] = self._observe_rows(state, idx)
             reward = self._xp.where(pending, 0.0, reward)
             terminated, truncated = terminated & ~pending, truncated & ~pending
             self._state = state
@@ -693,16 +677,42 @@ class PneuNetGraspVectorEnv(VectorEnv):
 
     def _merge_reset_info(self, info: dict[str, Any], reset, host_idx: np.ndarray, idx) -> None:
         """Put the reset info of the sub-envs ``reset`` (already reset in ``self._state``; their indices ``host_idx``
-        on the host, ``idx`` on the backend's device) into ``info``."""
-        for k, v in self._info(self._state, None, reset).items():
-            if k[0] == "_":
+        on the host, ``idx`` on the backend's device) into ``info``: computed for those sub-envs only (every value is
+        entry by entry) and scattered."""
+        keys = self.info_keys
+        if keys is not None and not keys:
+            return
+        rows = task.build_info(task.take(self._state, idx), self._params.task, None, self.info_level)
+        for k, v in rows.items():
+            if keys is not None and k not in keys:
                 continue
+            i = idx if is_torch(v) else host_idx
             if k in info:
-                i = idx if is_torch(v) else host_idx
-                info[k][i] = v[i]
+                info[k][i] = v
             else:  # a key only a reset info has (the object's constants, at the lean level)
-                info[k] = self._masked(reset, v)
+                info[k] = self._scatter(v, host_idx, idx, rows=True)
                 info["_" + k] = _copy(reset)
+
+    def _scatter(self, v, host_idx: np.ndarray, idx, rows: bool = False):
+        """An ``(N,)`` array of ``v``'s dtype (and device) holding ``v``'s entries ``idx`` there (``rows``: ``v`` holds
+        just those entries, in order) and the dtype's zero (``None`` for strings) elsewhere: what :meth:`_masked`
+        gives with the mask of ``idx``, by a scatter."""
+        if is_torch(v):
+            import torch
+
+            out = torch.zeros((self.num_envs,) + tuple(v.shape[1:]), dtype=v.dtype, device=v.device)
+            out[idx] = v if rows else v[idx]
+            return out
+        v = np.asarray(v)
+        shape = (self.num_envs,) + v.shape[1:]
+        out = np.full(shape, None, dtype=object) if v.dtype == object else np.zeros(shape, dtype=v.dtype)
+        out[host_idx] = v if rows else v[host_idx]
+        return out
+
+    def _observe_rows(self, state: task.EnvState, idx):
+        """The observations of the sub-envs ``idx`` of ``state`` (rows of :meth:`_observe`, computed for those only)."""
+        return task.observation(state.command[idx], state.eq.volume_change[idx], self._params.task,
+                                self._params.volume_scale)
 
     # ---- rendering ----------------------------------------------------------------------------------------
     def render_state(self, i: int):

@@ -1,4 +1,4 @@
-"""8-bit RGB PNG files with zlib alone: :func:`save_png` writes one, :func:`read_png` reads one back."""
+"""8-bit RGB PNG files with zlib alone: :func:`save_png` writes one (atomically), :func:`read_png` reads one back."""
 
 from __future__ import annotations
 
@@ -8,6 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
+from pneunet_env.files import atomic_write_bytes
+
 __all__ = ["save_png", "read_png"]
 
 
@@ -16,7 +18,9 @@ def _chunk(tag: bytes, data: bytes) -> bytes:
 
 
 def save_png(path: str | Path, image: np.ndarray) -> Path:
-    """Write an ``HxWx3`` uint8 array as an 8-bit RGB PNG (zlib only); returns the path."""
+    """Write an ``HxWx3`` uint8 array as an 8-bit RGB PNG (zlib only); returns the path.
+
+    Written atomically (:func:`pneunet_env.files.atomic_write_bytes`): a reader never sees half a file."""
     img = np.ascontiguousarray(image)
     if img.dtype != np.uint8 or img.ndim != 3 or img.shape[2] != 3:
         raise ValueError(f"image must be an HxWx3 uint8 array, got {img.dtype} {img.shape}")
@@ -27,9 +31,7 @@ def save_png(path: str | Path, image: np.ndarray) -> Path:
     png += _chunk(b"IHDR", struct.pack(">IIBBBBB", w, h, 8, 2, 0, 0, 0))
     png += _chunk(b"IDAT", zlib.compress(raw.tobytes(), 6))
     png += _chunk(b"IEND", b"")
-    path = Path(path)
-    path.write_bytes(png)
-    return path
+    return atomic_write_bytes(path, png)
 
 
 def read_png(path: str | Path) -> np.ndarray:

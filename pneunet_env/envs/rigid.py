@@ -8,15 +8,17 @@ evaluation run on it unchanged; it reuses :mod:`pneunet_env.task` for everything
 ## The gripper
 
 Two rigid jaws, position-controlled. The command is the jaw closure ``c`` (mm) past the surface of the
-*nominal* object (the middle of the config's curvature range). The jaw is an arc of radius
-``R_jaw = 1/kappa_nom - c``; the object's surface is at ``1/kappa_obj``, so the indentation is
+*nominal* object (the middle of the catalogue classes' radii; from ranges, of the config's curvature range).
+The jaw is an arc of radius ``R_jaw = 1/kappa_nom - c``; the object's surface is at ``1/kappa_obj``, so the
+indentation is
 
     delta = 1/kappa_obj - R_jaw = c + (1/kappa_obj - 1/kappa_nom)      (in contact while delta > 0)
 
-and the traction is the Winkler law of eq. 3.1, ``F = k_obj delta``. With the default config (one object
-size) ``delta = c`` exactly: the jaws close to a fixed indentation, as the issue asks. If the config's
-curvature range is wide, a fixed jaw position meets objects of different sizes (the blind rigid
-gripper's real weakness); the pneu-net, which curls until it touches, has no such offset.
+and the traction is the Winkler law of eq. 3.1, ``F = k_obj delta``. The jaw is blind to each object's size: on
+the default task (the catalogue's ``kitchen``, radii 15-40 mm) the nominal object is the middle of the classes'
+radii, 27.5 mm, so a fixed jaw position indents a large object deeper than a small one (the blind rigid gripper's
+real weakness); the pneu-net, which curls until it touches, has no such offset. With one object size (the paper's
+ring) ``delta = c`` exactly: the jaws close to a fixed indentation.
 
 There are no dynamics: the jaw is where it is commanded (a stiff position servo, quasi-static like the
 pneu-net's step). There is no force limit.
@@ -31,20 +33,43 @@ and :class:`agents.scripted.StepPolicy` drive it unchanged (their targets are th
 
 ``Box(0, 1, (1,), float32)``: the closure ``c / jaw_travel_mm`` (proprioception only: blind).
 
+## Default Task
+
+The objects, the rules, the reward and the episode of ``PneuNetGrasp-v0`` (its defaults, ``EnvConfig()``: see its
+docstring's Default Task and Catalogue), with the jaw's own (a test checks these against ``RigidGrasp-v0``):
+
+| Default               | Value           | Meaning                                                            |
+|-----------------------|-----------------|--------------------------------------------------------------------|
+| ``jaw_travel_mm``     | 17.6            | twice the deepest compliant layer drawn (``H`` up to 8.8 mm)       |
+| ``jaw_step_mm``       | 0.88            | ``jaw_travel_mm / 20``: full travel in 20 steps                    |
+| nominal radius (mm)   | 27.5            | the middle of the classes' radii (``1e3 / nominal_curvature_per_m``) |
+| ``damage_rule``       | ``hoop_strain`` | as ``PneuNetGrasp-v0``'s                                           |
+| episode steps         | 100             | ``squeeze_steps + hold_steps``                                     |
+
 ## Rewards, Starting State, Episode End
 
-Those of ``PneuNetGrasp-v0`` (:mod:`pneunet_env.task`): squeeze phase, then hold phase; damage when the
-traction exceeds the failure stress or the indentation exceeds ``crush_fraction H``; slip in the hold phase
-when the traction is below ``rho g H / (grip_faces mu_f)``; ``info["is_success"]`` at the end.
-``reset(seed=s)`` draws the same object as ``PneuNetGrasp-v0``'s ``reset(seed=s)`` (the same config).
+Those of ``PneuNetGrasp-v0`` (:mod:`pneunet_env.task`): squeeze phase, then hold phase; damage by the config's
+``damage_rule`` (by default ``hoop_strain``: overstressed when the traction exceeds the class's failure stress,
+crushed when the hoop strain ``delta kappa_obj`` exceeds its failure strain); slip in the hold phase when the
+traction is below ``rho g H / (grip_faces mu_f)``; ``info["is_success"]`` at the end. ``reset(seed=s)`` draws the
+same object as ``PneuNetGrasp-v0``'s ``reset(seed=s)`` (the same config); ``reset(options=...)`` pins as there.
+
+## Version History
+
+* v0 (0.5): the default objects changed with ``PneuNetGrasp-v0``'s (a stiffer apple for the same seed), and again
+  in 0.6 (the apple's flesh modulus only).
+* v0 (0.3): the default objects became the catalogue's ``kitchen`` under the hoop-strain rule; the nominal object
+  is the middle of the classes' radii, the default travel twice their deepest compliant layer.
+* v0 (0.1, 0.2): the paper's ring; travel ``2 crush_fraction H``.
 
 ## Arguments
 
 ``gym.make("RigidGrasp-v0", config=None, jaw_travel_mm=None, jaw_step_mm=None, **overrides)``: ``config`` and
 ``overrides`` as for ``PneuNetGrasp-v0`` (an :class:`pneunet_env.config.EnvConfig`, a mapping or a YAML path);
-``jaw_travel_mm`` defaults to twice the deepest allowed indentation, ``2 crush_fraction H_max``, kept below
-90 % of the nominal object's radius; ``jaw_step_mm`` defaults to the same fraction of the travel that
-``max_pressure_step_kpa`` is of ``max_pressure_kpa`` (1/20: full travel in 20 steps).
+``jaw_travel_mm`` defaults to twice the deepest compliant layer of the classes drawn (``2 H_max``; from ranges,
+the deepest allowed indentation ``2 crush_fraction H_max``), kept below 90 % of the nominal object's radius;
+``jaw_step_mm`` defaults to the same fraction of the travel that ``max_pressure_step_kpa`` is of
+``max_pressure_kpa`` (1/20: full travel in 20 steps).
 
 ## Info
 
@@ -59,18 +84,17 @@ import functools
 import math
 from typing import Any
 
-import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
 from pneunet_env import task
 from pneunet_env.catalogue import class_table
-from pneunet_env.config import EnvConfig, load_config
-from pneunet_env.envs.grasp import single_env_step
+from pneunet_env.config import EnvConfig
+from pneunet_env.envs.base import SingleGraspEnv
 from pneunet_env.physics.params import check_positive
 from pneunet_env.physics.solver import STATUS_CONVERGED, Equilibrium
 
-__all__ = ["RigidGraspEnv", "jaw_indentation", "default_jaw_travel_mm", "kinematic_contact"]
+__all__ = ["RigidGraspEnv", "jaw_indentation", "default_jaw_travel_mm", "kinematic_contact", "jaw_task_params"]
 
 
 def default_jaw_travel_mm(config: EnvConfig) -> float:
@@ -116,9 +140,15 @@ def kinematic_contact(kappa, side_strain, p0, closure_mm, obj, params, nominal_c
     )
 
 
-class RigidGraspEnv(gym.Env):
-    """A rigid, position-controlled gripper grasps the objects of ``PneuNetGrasp-v0`` (see the module docstring)."""
+class RigidGraspEnv(SingleGraspEnv):
+    """A rigid, position-controlled gripper grasps the objects of ``PneuNetGrasp-v0`` (see the module docstring).
 
+    The command the task steps (:attr:`pneunet_env.task.EnvState.command`) is the jaw closure in mm: the task's
+    command ceiling and step (``TaskParams.pressure_max`` and ``pressure_step``, a pressure's for the pneu-net) hold
+    :attr:`jaw_travel_mm` and :attr:`jaw_step_mm` here (:func:`jaw_task_params`).
+    """
+
+    env_id = "RigidGrasp-v0"
     metadata = {"render_modes": []}
 
     def __init__(
@@ -130,14 +160,11 @@ class RigidGraspEnv(gym.Env):
         info_level: str = "lean",
         **overrides: Any,
     ) -> None:
-        if render_mode is not None:
-            raise ValueError(f"RigidGrasp-v0 does not render (render_mode must be None), got {render_mode!r}")
-        if info_level not in task.INFO_LEVELS:
-            raise ValueError(f"info_level must be one of {task.INFO_LEVELS}, got {info_level!r}")
-        self.render_mode = None
-        self.info_level = info_level
-        self.config: EnvConfig = load_config(config, **overrides)
+        super().__init__(render_mode, config, info_level, overrides)
         cfg = self.config
+        for name, value in (("jaw_travel_mm", jaw_travel_mm), ("jaw_step_mm", jaw_step_mm)):
+            if isinstance(value, (bool, np.bool_)):
+                raise TypeError(f"{name} must be a length in mm (a number) or None, got {value!r}")
         nominal = _nominal_curvature_per_m(cfg)
         radius_mm = 1e3 / nominal
         travel = (
@@ -155,17 +182,10 @@ class RigidGraspEnv(gym.Env):
         self.jaw_travel_mm = float(travel)
         self.jaw_step_mm = float(step)
         self.nominal_curvature_per_m = nominal  # the jaw's arc fits an object of this curvature exactly
-        # The jaw closure (mm) is the command, moved as the pneu-net's pressure is: clip the action to [-1, 1],
-        # step by jaw_step_mm, clip to [0, jaw_travel_mm]. Everything else is PneuNetGrasp-v0's.
-        base = task.EnvParams.from_config(cfg)
-        jaw_task = base.task._replace(pressure_max=self.jaw_travel_mm, pressure_step=self.jaw_step_mm)
-        self._params = base._replace(task=jaw_task, volume_scale=None)
+        self._params = jaw_task_params(task.EnvParams.from_config(cfg), self.jaw_travel_mm, self.jaw_step_mm)
         self._contact = functools.partial(kinematic_contact, nominal_curvature_per_m=nominal)
         self._class_names = task.class_names(cfg)
-        self.action_space = spaces.Box(-1.0, 1.0, (1,), np.float32)
         self.observation_space = spaces.Box(0.0, 1.0, (1,), np.float32)
-        self._state: task.EnvState | None = None
-        self._ended = False
 
     @property
     def state(self) -> task.EnvState | None:
@@ -179,15 +199,12 @@ class RigidGraspEnv(gym.Env):
         info.update(jaw_closure_mm=self._state.command, jaw_travel_mm=self.jaw_travel_mm, gripper="rigid")
         return info
 
-    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
-        super().reset(seed=seed)
-        self._ended = False
-        if options is not None and not isinstance(options, dict):
-            raise ValueError(f"options must be a dict of object properties to pin, got {options!r}")
-        obj = task.sample_object(self.np_random, self.config, pinned=options)
-        self._state = task.reset_state(obj, self._params, self._contact)
-        obs = task.observation(self._state.command, 0.0, self._params.task)
-        return obs, self._info(None)
 
-    def step(self, action):
-        return single_env_step(self, action, self._contact, self._info)
+def jaw_task_params(params: task.EnvParams, jaw_travel_mm: float, jaw_step_mm: float) -> task.EnvParams:
+    """``params`` for a jaw whose closure (mm) is the command: the task's command ceiling and step (the fields
+    ``pressure_max`` and ``pressure_step`` of :class:`~pneunet_env.task.TaskParams`, named for the pneu-net's
+    pressure) become the jaw's travel and step in mm, so the action moves the closure as it moves the pneu-net's
+    pressure: clip the action to ``[-1, 1]``, step by ``jaw_step_mm``, clip to ``[0, jaw_travel_mm]``. No volume is
+    observed (``volume_scale=None``). Everything else is ``PneuNetGrasp-v0``'s."""
+    jaw_task = params.task._replace(pressure_max=jaw_travel_mm, pressure_step=jaw_step_mm)
+    return params._replace(task=jaw_task, volume_scale=None)

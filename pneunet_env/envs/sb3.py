@@ -32,6 +32,7 @@ import numpy as np
 from gymnasium.vector import AutoresetMode, VectorEnv
 from stable_baselines3.common.vec_env.base_vec_env import VecEnv, VecEnvIndices, VecEnvStepReturn
 
+from pneunet_env.physics.xp import is_torch
 from pneunet_env.task import class_name
 
 __all__ = ["SB3VecEnv"]
@@ -83,7 +84,10 @@ class SB3VecEnv(VecEnv):
                 raise ValueError(f"info_keys must be a sequence of info keys or 'all', got {info_keys!r}")
             self._info_keys: tuple[str, ...] | None = None
         else:
-            self._info_keys = tuple(info_keys)
+            keys = tuple(info_keys) if isinstance(info_keys, Iterable) and not isinstance(info_keys, bytes) else None
+            if keys is None or not all(isinstance(k, str) for k in keys):
+                raise ValueError(f"info_keys must be a sequence of info keys (strings) or 'all', got {info_keys!r}")
+            self._info_keys = keys
         self.env = env
         super().__init__(env.num_envs, env.single_observation_space, env.single_action_space)
         self._actions: np.ndarray | None = None
@@ -146,7 +150,8 @@ class SB3VecEnv(VecEnv):
         return {k: np.array([o[k] for o in opts]) for k in keys}
 
     def step_async(self, actions: np.ndarray) -> None:
-        self._actions = np.asarray(actions)
+        # a torch tensor (the torch backend) stays one, detached; anything else is read by numpy
+        self._actions = actions.detach() if is_torch(actions) else np.asarray(actions)
 
     def step_wait(self) -> VecEnvStepReturn:
         if self._actions is None:

@@ -2,7 +2,9 @@
 
 The command line only: the figures are computed and drawn by :mod:`pneunet_env.paper.figures`, the statements
 measured by :mod:`pneunet_env.paper.checks`. Writes ``NAME.csv`` and ``NAME.png`` per figure and
-``paper_checks.md``; exits 1 if an equilibrium did not converge or a check disagrees with its expected outcome.
+``paper_checks.md`` (each atomically: a file there is replaced whole); exits 1 if an equilibrium did not converge or
+a check disagrees with its expected outcome. ``--out`` is checked before any equilibrium is computed: a folder that
+exists or can be created (with ``--table-only``: one that exists, holding the CSVs).
 """
 
 from __future__ import annotations
@@ -11,6 +13,8 @@ import argparse
 import sys
 from pathlib import Path
 
+from pneunet_env import arguments
+from pneunet_env.files import atomic_write_text
 from pneunet_env.paper import checks as paper_checks
 from pneunet_env.paper.figures import FIGURES, generate, load_tables
 from pneunet_env.progress import add_progress_argument, progress_enabled
@@ -19,7 +23,8 @@ __all__ = ["add_arguments", "run"]
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--out", required=True, help="output folder (created): NAME.png, NAME.csv, paper_checks.md")
+    parser.add_argument("--out", required=True, type=arguments.output_dir,
+                        help="output folder (created): NAME.png, NAME.csv, paper_checks.md")
     parser.add_argument("--quick", action="store_true", help="coarser grids (CI): well under a minute")
     parser.add_argument("--only", nargs="+", metavar="NAME", choices=list(FIGURES),
                         help=f"only these figures (default all: {', '.join(FIGURES)}); the checks need all")
@@ -32,7 +37,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     if args.table_only:
-        tables = load_tables(out)
+        if not out.is_dir():
+            raise ValueError(f"--table-only reads the CSVs in --out {str(out)!r}, which is no folder; run "
+                             f"'pneunet-grasp figures --out {out}' first")
+        try:
+            tables = load_tables(out)
+        except FileNotFoundError as exc:
+            raise ValueError(f"--table-only: {exc}") from None
         print(paper_checks.render_markdown(paper_checks.run_checks(tables)))
         return 0
     report = generate(out, quick=args.quick, names=args.only, csv_files=not args.no_csv,
@@ -46,7 +57,7 @@ def run(args: argparse.Namespace) -> int:
         results = paper_checks.run_checks(report.tables)
         md = paper_checks.render_markdown(results)
         if not args.no_csv:
-            (out / "paper_checks.md").write_text(md + "\n")
+            atomic_write_text(out / "paper_checks.md", md + "\n")
             print(f"wrote {out / 'paper_checks.md'}")
         print()
         print(md)

@@ -28,11 +28,10 @@ import os
 import sys
 import threading
 from pathlib import Path
-from typing import NamedTuple
 
 import numpy as np
 
-from pneunet_env.physics import _jit, contact, masked, mechanics
+from pneunet_env.physics import _jit, contact, masked, mechanics, xp
 from pneunet_env.physics import solver as _solver
 from pneunet_env.physics._jit import HAVE_NUMBA
 from pneunet_env.physics.params import ActuatorParams
@@ -43,6 +42,7 @@ from pneunet_env.physics.solver import (
     STATUS_OUTSIDE,
     STATUS_ROUNDOFF,
     Equilibrium,
+    Solve,
     SolverOptions,
     params_tuple,
     step_state,
@@ -53,21 +53,6 @@ __all__ = ["BACKENDS", "PARALLEL_MIN_ENVS", "ENVS_PER_THREAD", "threads_for", "c
            "run_loop", "solve_batch", "solve_batch_numba", "solve_batch_numpy", "solve_batch_torch"]
 
 BACKENDS = ("auto", "numba", "numpy", "torch")
-
-
-class _Raw(NamedTuple):
-    """The per-env outputs of a back-end, before :func:`_result` builds the :class:`Equilibrium`."""
-
-    kappa: np.ndarray
-    side_strain: np.ndarray
-    energy: np.ndarray
-    gradient_norm: np.ndarray
-    min_eigenvalue: np.ndarray
-    iterations: np.ndarray
-    substeps: np.ndarray
-    snapped: np.ndarray
-    status: np.ndarray
-    volume_change: np.ndarray
 
 
 # --------------------------------------------------------------------------------------------------
@@ -235,23 +220,24 @@ def _solve_batch_torch_api(kappa, side_strain, p0, p1, object_stiffness, object_
     return result
 
 
-def _result(raw: _Raw, p1, kobj, ko, chamber_height: float, ops: Ops = NUMPY) -> Equilibrium:
-    """The :class:`Equilibrium` of a back-end's outputs: eq. 3.1 and ``e_m`` from the state, as the scalar
+def _result(raw: Solve, p1, kobj, ko, chamber_height: float, ops: Ops = NUMPY) -> Equilibrium:
+    """The :class:`Equilibrium` of a back-end's outputs (a :class:`~pneunet_env.physics.solver.Solve` of ``(N,)``
+    arrays): eq. 3.1 and ``e_m`` from the state, as the scalar
     :func:`pneunet_env.physics.solver.equilibrium` computes them (arrays of the namespace ``ops``)."""
     with np.errstate(divide="ignore", invalid="ignore"):
-        delta, force, touching = masked.kernels(ops)[3](raw.kappa, kobj, ko)
+        delta, force, touching = masked.kernels(ops).contact(raw.kappa, kobj, ko)
     status = raw.status
     return Equilibrium(
         copy(p1), raw.kappa, raw.side_strain, chamber_height * (1.0 + raw.side_strain) * raw.kappa, force, delta,
         touching, raw.volume_change, raw.energy, raw.gradient_norm, raw.min_eigenvalue,
         (status >= STATUS_CONVERGED) & (status <= STATUS_ROUNDOFF), raw.iterations, raw.substeps, raw.snapped,
-        status, copy(kobj), copy(ko),
+        status, copy(kobj), copy(ko), raw.evaluations, raw.backtracks,
     )
 
 
-def _allocate(k, s) -> _Raw:
+def _allocate(k, s) -> Solve:
     n = k.shape[0]
-    return _Raw(
+    return Solve(
         kappa=k.copy(),
         side_strain=s.copy(),
         energy=np.full(n, np.nan),
@@ -262,6 +248,8 @@ def _allocate(k, s) -> _Raw:
         snapped=np.zeros(n, dtype=bool),
         status=np.full(n, STATUS_INACTIVE, dtype=np.int64),
         volume_change=np.full(n, np.nan),
+        evaluations=np.zeros(n, dtype=np.int64),
+        backtracks=np.zeros(n, dtype=np.int64),
     )
 
 
@@ -314,22 +302,39 @@ def _make_loop(stamp: int, variant: int):
     # ``stamp`` and ``variant`` are closure variables, so they are part of the key of numba's on-disk cache:
     # an edit of the solver or the energy recompiles the loop instead of loading a stale one, and the
     # serial and parallel loops (same code, same name) get separate entries.
-    def _loop(k, s, p0, p1, kobj, ko, prm, opts, active, ok, os_, oU, og, ol, oit, osub, osnap, ost, odv):
+    def _loop(k, s, p0, p1, kobj, ko, prm, opts, active, out):
+        # out: a Solve of (N,) arrays, written env by env. Its arrays are taken out of the record before the loop, one
+        # assignment each: numba's parallel loop loses the writes made through a record's field, or through arrays
+        # unpacked from a tuple (numba 0.68; test_parallel_and_serial_loops_agree checks it).
         if stamp < 0 or variant < 0:
             return
+        o_kappa = out.kappa
+        o_side_strain = out.side_strain
+        o_energy = out.energy
+        o_gradient_norm = out.gradient_norm
+        o_min_eigenvalue = out.min_eigenvalue
+        o_iterations = out.iterations
+        o_substeps = out.substeps
+        o_snapped = out.snapped
+        o_status = out.status
+        o_volume_change = out.volume_change
+        o_evaluations = out.evaluations
+        o_backtracks = out.backtracks
         for i in numba.prange(k.shape[0]):
             if active[i]:
                 r = step_state(k[i], s[i], p0[i], p1[i], prm, kobj[i], ko[i], opts)
-                ok[i] = r[0]
-                os_[i] = r[1]
-                oU[i] = r[2]
-                og[i] = r[3]
-                ol[i] = r[4]
-                oit[i] = r[5]
-                osub[i] = r[6]
-                osnap[i] = r[7]
-                ost[i] = r[8]
-                odv[i] = r[9]
+                o_kappa[i] = r.kappa
+                o_side_strain[i] = r.side_strain
+                o_energy[i] = r.energy
+                o_gradient_norm[i] = r.gradient_norm
+                o_min_eigenvalue[i] = r.min_eigenvalue
+                o_iterations[i] = r.iterations
+                o_substeps[i] = r.substeps
+                o_snapped[i] = r.snapped
+                o_status[i] = r.status
+                o_volume_change[i] = r.volume_change
+                o_evaluations[i] = r.evaluations
+                o_backtracks[i] = r.backtracks
 
     return _loop
 
@@ -403,7 +408,8 @@ if HAVE_NUMBA:
         numba.config.THREADING_LAYER = "forksafe"
         TBB_LOADED = preload_tbb()  # a venv's lib/ is not on the loader's path: without this, no TBB there
 
-    _loop_serial, _loop_parallel = compile_loops(_make_loop, (mechanics, contact, _solver, _jit, sys.modules[__name__]))
+    _loop_serial, _loop_parallel = compile_loops(_make_loop, (mechanics, contact, _solver, _jit, xp,
+                                                              sys.modules[__name__]))
 
 
 def check_threads(threads) -> None:
@@ -426,10 +432,9 @@ def solve_batch_numba(k, s, p0, p1, kobj, ko, prm, opts, active, parallel: bool 
     if not HAVE_NUMBA:
         raise RuntimeError("the numba back-end needs numba")
     out = _allocate(k, s)
-    args = (k, s, p0, p1, kobj, ko, prm, opts, active, out.kappa, out.side_strain, out.energy, out.gradient_norm,
-            out.min_eigenvalue, out.iterations, out.substeps, out.snapped, out.status, out.volume_change)
-    run_loop(_loop_serial, _loop_parallel, args, k.shape[0], parallel, threads)
-    return _result(out, p1, kobj, ko, prm[0])
+    run_loop(_loop_serial, _loop_parallel, (k, s, p0, p1, kobj, ko, prm, opts, active, out), k.shape[0], parallel,
+             threads)
+    return _result(out, p1, kobj, ko, prm.chamber_height)
 
 
 def run_loop(serial, parallel_loop, args: tuple, n: int, parallel: bool | None, threads: int | None) -> None:
@@ -464,7 +469,7 @@ def solve_batch_numpy(k, s, p0, p1, kobj, ko, prm, opts, active) -> Equilibrium:
     """
     with np.errstate(all="ignore"):
         out = masked.solve_masked(k, s, p0, p1, kobj, ko, prm, opts, active, NUMPY, compact=True)
-    return _result(_Raw(**out), p1, kobj, ko, prm[0])
+    return _result(Solve(**out), p1, kobj, ko, prm.chamber_height)
 
 
 def solve_batch_torch(k, s, p0, p1, kobj, ko, prm, opts, active, *, compile: bool = False,
@@ -482,7 +487,7 @@ def solve_batch_torch(k, s, p0, p1, kobj, ko, prm, opts, active, *, compile: boo
     out = masked.solve_masked(k, s, p0, p1, kobj, ko, prm, opts, active, ops, compact=cpu and not compile,
                               check_every=1 if cpu else 8, max_rounds=max_rounds,
                               round_fn=compiled_round() if compile else None)
-    return _result(_Raw(**out), p1, kobj, ko, prm[0], ops)
+    return _result(Solve(**out), p1, kobj, ko, prm.chamber_height, ops)
 
 
 _COMPILED: list = []

@@ -21,6 +21,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from pneunet_env.physics.xp import identity, scalar_max, scalar_where
+
 __all__ = ["make_contact", "indentation", "contact", "scalar_indentation", "scalar_contact", "winkler_stiffness",
            "CONVERGED_CONTACT_RATIO", "contact_ratio"]
 
@@ -38,11 +40,7 @@ def contact_ratio(object_stiffness, object_curvature):
     return object_stiffness / object_curvature**4
 
 
-def _identity(fn):
-    return fn
-
-
-def make_contact(maximum, where, jit=_identity):
+def make_contact(maximum, where, jit=identity):
     """Build ``(indentation, contact)`` from elementary operations (numpy ufuncs, or scalar ones).
 
     * ``indentation(kappa~, w kappa_obj) -> delta~``: the geometric overlap, 0 out of contact;
@@ -63,16 +61,8 @@ def make_contact(maximum, where, jit=_identity):
     return indentation, contact
 
 
-def _smax(a, b):
-    return a if a > b else b
-
-
-def _swhere(c, a, b):
-    return a if c else b
-
-
 indentation, _np_contact = make_contact(np.maximum, np.where)
-scalar_indentation, scalar_contact = make_contact(_smax, _swhere)
+scalar_indentation, scalar_contact = make_contact(scalar_max, scalar_where)
 """``scalar_contact``: :func:`contact` on Python floats (what one environment uses: no ufunc calls)."""
 
 

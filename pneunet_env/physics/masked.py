@@ -25,7 +25,8 @@ its ``"torch"`` back-end on a CPU or a GPU.
 from __future__ import annotations
 
 import math
-from typing import Any
+from collections.abc import Callable
+from typing import Any, NamedTuple
 
 from pneunet_env.physics import mechanics
 from pneunet_env.physics.contact import make_contact
@@ -50,11 +51,12 @@ from pneunet_env.physics.solver import (
     STATUS_ROUNDOFF,
     STATUS_STALLED,
     STEP_AFTER_FOLD,
+    Solve,
     make_sym2,
 )
 from pneunet_env.physics.xp import Ops, copy
 
-__all__ = ["solve_masked", "kernels", "OUTPUTS"]
+__all__ = ["solve_masked", "kernels", "Kernels", "OUTPUTS"]
 
 # Program positions. Those that wait for an energy evaluation at the env's pending point (xk, xs, xp) ...
 _E_START = 1  # the start of a descent
@@ -74,24 +76,33 @@ _FLOAT = ("k", "s", "U", "g0", "g1", "gn", "lmin", "lmax", "hkk", "hks", "hss", 
           "d0", "d1", "slope", "t", "kn", "sn", "k0", "s0", "radius",
           "bk", "bs", "bU", "bgn", "blmin", "bhkk", "bhks", "bhss", "bvk", "bvs", "bdv",
           "p", "pt", "h", "sign", "xk", "xs", "xp")
-_INT = ("pos", "mode", "it", "maxit", "dstatus", "bstatus", "iters", "substeps", "attempts")
+_INT = ("pos", "mode", "it", "maxit", "dstatus", "bstatus", "iters", "substeps", "attempts", "evals", "backs")
 _BOOL = ("ok", "bok", "snapped")
 
-OUTPUTS = ("kappa", "side_strain", "energy", "gradient_norm", "min_eigenvalue", "iterations", "substeps",
-           "snapped", "status", "volume_change")
-"""The per-env outputs of :func:`solve_masked`, in order."""
+OUTPUTS = Solve._fields
+"""The per-env outputs of :func:`solve_masked`, in order (:class:`pneunet_env.physics.solver.Solve`'s fields)."""
 
-_KERNELS: dict[str, tuple] = {}
+class Kernels(NamedTuple):
+    """The package's formulas on one namespace (:func:`kernels`)."""
+
+    terms: Callable  # the energy kernel (:func:`pneunet_env.physics.mechanics.make_terms`)
+    eigvals: Callable  # the 2x2 eigen helpers (:func:`pneunet_env.physics.solver.make_sym2`)
+    eigvec: Callable
+    contact: Callable  # eq. 3.1 (:func:`pneunet_env.physics.contact.make_contact`)
 
 
-def kernels(ops: Ops) -> tuple:
-    """``(terms, eigvals, eigvec, contact)`` on the namespace ``ops``: the energy kernel, the 2x2 eigen helpers and
-    eq. 3.1 (:func:`pneunet_env.physics.contact.make_contact`), each the package's one formula."""
+_KERNELS: dict[str, Kernels] = {}
+
+
+def kernels(ops: Ops) -> Kernels:
+    """The energy kernel, the 2x2 eigen helpers and eq. 3.1 on the namespace ``ops``, each the package's one
+    formula."""
     key = f"{ops.name}:{ops.device}"
     if key not in _KERNELS:
-        terms = mechanics.make_terms(ops.log, ops.sin, ops.cos, ops.where, ops.maximum, ops.abs)[1]
+        _, terms = mechanics.make_terms(ops.log, ops.tan, ops.where, ops.maximum, ops.abs)
         eigvals, eigvec = make_sym2(ops.hypot, ops.atan2, ops.cos, ops.sin, ops.where)
-        _KERNELS[key] = (terms, eigvals, eigvec, make_contact(ops.maximum, ops.where)[1])
+        _, contact = make_contact(ops.maximum, ops.where)
+        _KERNELS[key] = Kernels(terms, eigvals, eigvec, contact)
     return _KERNELS[key]
 
 
@@ -127,7 +138,7 @@ def _accept(m, sel, W) -> None:
 def _after_evaluation(m, ev, ops: Ops, eigvals) -> None:
     W, A = ops.where, ops.abs
     pos = m["pos"]
-    ok = ev[0]
+    ok = ev.ok
     # A predictor outside the domain: the corrector starts from the branch point instead (another evaluation).
     pred_out = (pos == _E_PRED) & ~ok
     m["xk"], m["xs"] = W(pred_out, m["bk"], m["xk"]), W(pred_out, m["bs"], m["xs"])
@@ -135,8 +146,8 @@ def _after_evaluation(m, ev, ops: Ops, eigvals) -> None:
     start = ((pos == _E_START) | (pos == _E_PRED)) & ~pred_out
     # A line-search trial: decided on the iterate before it changes.
     trial = pos == _E_TRIAL
-    Un = ev[1]
-    nnorm = ops.hypot(ev[2], ev[3])
+    Un = ev.energy
+    nnorm = ops.hypot(ev.g_kappa, ev.g_strain)
     U, gn = m["U"], m["gn"]
     armijo = (Un <= U + ARMIJO * m["t"] * m["slope"]) | (
         (A(Un - U) <= ENERGY_ROUNDOFF * ops.maximum(A(U), 1.0)) & (nnorm < gn))
@@ -154,6 +165,7 @@ def _after_evaluation(m, ev, ops: Ops, eigvals) -> None:
     status = W(bad, STATUS_OUTSIDE, W(start, STATUS_MAX_ITER, m["dstatus"]))
 
     # Rejected trials: halve the step, or give up (status 3).
+    m["backs"] = W(rej, m["backs"] + 1, m["backs"])
     m["t"] = W(rej, 0.5 * m["t"], m["t"])
     more = rej & (m["t"] > MIN_STEP_LENGTH)
     _trial_point(m, more, W)
@@ -281,9 +293,10 @@ def _follow_loop(m, corr_iter, min_step, max_jump, max_substeps, ops: Ops) -> No
 
 def _round(m, prm, opts, ops: Ops, kern) -> None:
     """One round: evaluate every env's pending point, then advance every env's control flow (in place in ``m``)."""
-    terms, eigvals, eigvec = kern[:3]
+    terms, eigvals, eigvec = kern.terms, kern.eigvals, kern.eigvec
     gtol, max_iter, corr_iter, max_step, min_step, max_jump, eig_floor, max_substeps = opts
     ev = terms(m["xk"], m["xs"], m["xp"], *prm, m["kobj"], m["ko"])
+    m["evals"] = ops.where(m["pos"] <= _E_TRIAL, m["evals"] + 1, m["evals"])  # the envs waiting for it (not _DONE)
     _after_evaluation(m, ev, ops, eigvals)
     # Every env that waited for this evaluation is now at a branch position, and one pass resolves them all:
     # D_CHECK -> E_TRIAL or D_END; D_END -> F_LOOP or E_START; F_LOOP -> E_PRED, E_START or DONE.
@@ -297,7 +310,8 @@ def _outputs(m, ops: Ops) -> dict[str, Any]:
     return {
         "kappa": m["bk"], "side_strain": m["bs"], "energy": m["bU"], "gradient_norm": m["bgn"],
         "min_eigenvalue": m["blmin"], "iterations": m["iters"], "substeps": m["substeps"], "snapped": m["snapped"],
-        "status": m["bstatus"], "volume_change": ops.where(bok, m["bdv"], math.nan),
+        "status": m["bstatus"], "volume_change": ops.where(bok, m["bdv"], math.nan), "evaluations": m["evals"],
+        "backtracks": m["backs"],
     }
 
 

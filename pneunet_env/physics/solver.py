@@ -31,12 +31,19 @@ import numpy as np
 from pneunet_env.physics import mechanics
 from pneunet_env.physics._jit import njit
 from pneunet_env.physics.contact import scalar_contact
+from pneunet_env.physics.mechanics import Evaluation
 from pneunet_env.physics.params import ActuatorParams, check_finite, check_object
+from pneunet_env.physics.xp import identity, scalar_max, scalar_where
 
 __all__ = [
     "SolverOptions",
     "DEFAULT_OPTIONS",
     "Equilibrium",
+    "ActuatorNumbers",
+    "Minimum",
+    "Descent",
+    "Solve",
+    "Continuation",
     "LoadPath",
     "STATUS_MESSAGES",
     "status_message",
@@ -106,10 +113,9 @@ _STATUS_ARRAY = np.array([STATUS_MESSAGES[c] for c in range(-1, max(STATUS_MESSA
 
 
 def status_message(status):
-    """The message of a ``status`` code (a string), or of an array of codes (an object array of strings)."""
-    if isinstance(status, np.ndarray):
-        return _STATUS_ARRAY[status + 1]
-    return STATUS_MESSAGES[int(status)]
+    """The message of a ``status`` code (a string), or of an array of codes (an object array of strings); the codes
+    are those of :data:`STATUS_MESSAGES`, ``-1 .. 6``."""
+    return _STATUS_ARRAY[status + 1]
 
 
 OPTION_BOUNDS: dict[str, tuple[float, float, str]] = {
@@ -199,7 +205,90 @@ DEFAULT_OPTIONS = SolverOptions()
 _DEFAULT_OPTIONS_TUPLE = DEFAULT_OPTIONS.as_tuple()
 
 
-def make_sym2(hypot, atan2, cos, sin, where, jit=mechanics._identity):
+# ---- The compiled solver's records (numba builds, returns and reads them by name) ----
+
+
+class ActuatorNumbers(NamedTuple):
+    """The dimensionless actuator as the compiled solver takes it (:func:`params_tuple`)."""
+
+    chamber_height: float  # d
+    base_thickness: float  # h_b
+    side_thickness: float  # h_s
+    top_thickness: float  # h_m
+    base_modulus: float  # E_b
+    poisson_ratio: float  # nu
+    gent_limit: float  # J
+
+
+class Minimum(NamedTuple):
+    """A descent's result at fixed pressure (:func:`minimise_state`), with its work (energy evaluations, the start's
+    included, and rejected line-search trials)."""
+
+    kappa: Any
+    side_strain: Any
+    energy: Any
+    gradient_norm: Any
+    min_eigenvalue: Any
+    iterations: Any
+    status: Any
+    evaluations: Any
+    backtracks: Any
+
+
+class Descent(NamedTuple):
+    """A descent's result, with the energy evaluation at it (so that no point is evaluated twice) and its work: the
+    energy evaluations it made (its line-search trials; the start's is the caller's) and the trials it rejected
+    (backtracks: each halves the step)."""
+
+    kappa: Any
+    side_strain: Any
+    energy: Any
+    gradient_norm: Any
+    min_eigenvalue: Any
+    iterations: Any
+    status: Any
+    evaluation: Evaluation
+    evaluations: Any
+    backtracks: Any
+
+
+class Solve(NamedTuple):
+    """The continuation's result (:data:`step_state`), one env (scalars) or N (arrays, a batched back-end's)."""
+
+    kappa: Any
+    side_strain: Any
+    energy: Any
+    gradient_norm: Any
+    min_eigenvalue: Any
+    iterations: Any
+    substeps: Any
+    snapped: Any
+    status: Any
+    volume_change: Any  # NaN only if the start was outside the domain
+    evaluations: Any  # energy evaluations made (the work counters: see Equilibrium)
+    backtracks: Any  # line-search trials rejected
+
+
+class Continuation(NamedTuple):
+    """:class:`Solve`'s fields and the energy evaluation at the answer (``step_state_from``: a cache keeps it).
+    ``evaluations`` does not count the start's (``ev0``, the caller's)."""
+
+    kappa: Any
+    side_strain: Any
+    energy: Any
+    gradient_norm: Any
+    min_eigenvalue: Any
+    iterations: Any
+    substeps: Any
+    snapped: Any
+    status: Any
+    volume_change: Any
+    evaluations: Any
+    backtracks: Any
+    evaluation: Evaluation
+
+
+def make_sym2(hypot, atan2, cos, sin, where, jit=identity):
     """Build ``(eigvals, eigvec)`` of the symmetric 2x2 matrix ``[[a, b], [b, c]]`` from elementary operations.
 
     Written once, instantiated twice: on floats (:func:`sym2_eigvals`, :func:`sym2_eigvec`, compiled with numba)
@@ -229,26 +318,29 @@ def make_sym2(hypot, atan2, cos, sin, where, jit=mechanics._identity):
     return eigvals, eigvec
 
 
-sym2_eigvals, sym2_eigvec = make_sym2(math.hypot, math.atan2, math.cos, math.sin, njit(mechanics._swhere), njit)
+sym2_eigvals, sym2_eigvec = make_sym2(math.hypot, math.atan2, math.cos, math.sin, njit(scalar_where), njit)
 
 
 def _make_parts(terms, jit=njit):
     """The solver's pieces over an energy kernel ``terms`` (:func:`pneunet_env.physics.mechanics.make_terms`'s),
     compiled by ``jit``: ``(evaluate, minimise, follow_ev)``.
 
-    * ``evaluate(k, s, p, prm, kobj, ko)``: the kernel on a packed parameter tuple;
-    * ``minimise(k, s, p, prm, kobj, ko, gtol, max_iter, eig_floor) -> (k, s, U, |g|, lam_min, iters, status)``:
-      the safeguarded descent at fixed pressure;
-    * ``follow_ev(k, s, p0, p1, prm, kobj, ko, opts)``: the continuation (:data:`step_state`).
+    * ``evaluate(k, s, p, prm, kobj, ko) -> Evaluation``: the kernel on the packed :class:`ActuatorNumbers`;
+    * ``minimise(k, s, p, prm, kobj, ko, gtol, max_iter, eig_floor) -> Minimum``: the safeguarded descent at fixed
+      pressure;
+    * ``follow_ev(k, s, p0, p1, prm, kobj, ko, opts) -> Solve``: the continuation (:data:`step_state`);
+    * ``follow_from(k, s, p0, p1, prm, kobj, ko, opts, ev0) -> Continuation``: the same from a start whose
+      evaluation is known.
 
     Inside, ``descend`` is the Newton descent from a point whose evaluation is already known, returning the
-    evaluation at its result too, so no point is evaluated twice. ``prm`` is :func:`params_tuple`, ``opts``
-    :meth:`SolverOptions.as_tuple`; ``status`` indexes :data:`STATUS_MESSAGES`.
+    evaluation at its result too (a :class:`Descent`), so no point is evaluated twice. ``prm`` is
+    :func:`params_tuple`, ``opts`` :meth:`SolverOptions.as_tuple`; ``status`` indexes :data:`STATUS_MESSAGES`.
     """
 
     @jit
     def evaluate(k, s, p, prm, kobj, ko):
-        return terms(k, s, p, prm[0], prm[1], prm[2], prm[3], prm[4], prm[5], prm[6], kobj, ko)
+        return terms(k, s, p, prm.chamber_height, prm.base_thickness, prm.side_thickness, prm.top_thickness,
+                     prm.base_modulus, prm.poisson_ratio, prm.gent_limit, kobj, ko)
 
     @jit
     def descend(k, s, p, prm, kobj, ko, gtol, max_iter, eig_floor, ev, k0, s0, radius):
@@ -256,10 +348,12 @@ def _make_parts(terms, jit=njit):
         # from (k0, s0) or has a Hessian that is not positive definite.
         ok, U, g0, g1, hkk, hks, hss, _, _, _ = ev
         if not ok:
-            return k, s, math.inf, math.inf, -math.inf, 0, STATUS_OUTSIDE, ev
+            return Descent(k, s, math.inf, math.inf, -math.inf, 0, STATUS_OUTSIDE, ev, 0, 0)
         gnorm = math.hypot(g0, g1)
         lmin, lmax = sym2_eigvals(hkk, hks, hss)
         it = 0
+        n_eval = 0  # the work: energy evaluations (line-search trials) and rejected trials
+        n_back = 0
         status = STATUS_MAX_ITER
         while True:
             if gnorm <= gtol and lmin > 0.0:
@@ -305,21 +399,24 @@ def _make_parts(terms, jit=njit):
                     # Newton step towards it overshoots and is halved, and the descent only converges linearly.
                     kn = 0.0
                 evn = evaluate(kn, sn, p, prm, kobj, ko)
-                if evn[0]:
-                    nnorm = math.hypot(evn[2], evn[3])
+                n_eval += 1
+                if evn.ok:
+                    nnorm = math.hypot(evn.g_kappa, evn.g_strain)
                     # Armijo; at round-off level the energy cannot rank points, so fall back on |grad|.
-                    if evn[1] <= U + ARMIJO * t * slope or (
-                        abs(evn[1] - U) <= ENERGY_ROUNDOFF * max(1.0, abs(U)) and nnorm < gnorm
+                    if evn.energy <= U + ARMIJO * t * slope or (
+                        abs(evn.energy - U) <= ENERGY_ROUNDOFF * max(1.0, abs(U)) and nnorm < gnorm
                     ):
                         accepted = True
                         break
                 t *= 0.5
+                n_back += 1
             if not accepted:
                 status = STATUS_LINE_SEARCH
                 break
             moved = abs(kn - k) + abs(sn - s)
             ev = evn
-            k, s, U, g0, g1, hkk, hks, hss, gnorm = kn, sn, evn[1], evn[2], evn[3], evn[4], evn[5], evn[6], nnorm
+            k, s, gnorm = kn, sn, nnorm
+            U, g0, g1, hkk, hks, hss = evn.energy, evn.g_kappa, evn.g_strain, evn.h_kk, evn.h_ks, evn.h_ss
             lmin, lmax = sym2_eigvals(hkk, hks, hss)
             if moved == 0.0:
                 status = STATUS_STALLED
@@ -328,12 +425,13 @@ def _make_parts(terms, jit=njit):
                 break  # a corrector that leaves the branch's convex neighbourhood: the sub-step was too long
         if status != STATUS_CONVERGED and gnorm <= ACCEPT_GTOL and lmin > 0.0:
             status = STATUS_ROUNDOFF
-        return k, s, U, gnorm, lmin, it, status, ev
+        return Descent(k, s, U, gnorm, lmin, it, status, ev, n_eval, n_back)
 
     @jit
     def minimise(k, s, p, prm, kobj, ko, gtol, max_iter, eig_floor):
         r = descend(k, s, p, prm, kobj, ko, gtol, max_iter, eig_floor, evaluate(k, s, p, prm, kobj, ko), k, s, math.inf)
-        return r[0], r[1], r[2], r[3], r[4], r[5], r[6]
+        return Minimum(r.kappa, r.side_strain, r.energy, r.gradient_norm, r.min_eigenvalue, r.iterations, r.status,
+                       1 + r.evaluations, r.backtracks)
 
     @jit
     def follow_from(k, s, p0, p1, prm, kobj, ko, opts, ev0):
@@ -341,8 +439,8 @@ def _make_parts(terms, jit=njit):
         # step's last one); returns follow_ev's tuple and the evaluation at the answer.
         gtol, max_iter, corr_iter, max_step, min_step, max_jump, eig_floor, max_substeps = opts
         # Polish the start so that the tangent is taken at an equilibrium (at an equilibrium: one evaluation).
-        k, s, U, gn, lmin, iters, status, ev = descend(k, s, p0, prm, kobj, ko, gtol, max_iter, eig_floor, ev0, k, s,
-                                                       math.inf)
+        k, s, U, gn, lmin, iters, status, ev, n_eval, n_back = descend(k, s, p0, prm, kobj, ko, gtol, max_iter,
+                                                                       eig_floor, ev0, k, s, math.inf)
         substeps = 0
         snapped = False
         p = p0
@@ -355,7 +453,7 @@ def _make_parts(terms, jit=njit):
                 break
             attempts += 1
             # Tangent dx/dp = H^{-1} dV/dx at the current equilibrium, where the Hessian is positive definite.
-            hkk, hks, hss, vk, vs = ev[4], ev[5], ev[6], ev[8], ev[9]
+            hkk, hks, hss, vk, vs = ev.h_kk, ev.h_ks, ev.h_ss, ev.v_kappa, ev.v_strain
             det = hkk * hss - hks * hks
             tangent = hkk > 0.0 and det > 0.0
             tk = ts = 0.0
@@ -373,19 +471,24 @@ def _make_parts(terms, jit=njit):
                 kc = k + (pt - p) * tk
                 sc = s + (pt - p) * ts
                 evc = evaluate(kc, sc, pt, prm, kobj, ko)
-                if evc[0]:
+                n_eval += 1
+                if evc.ok:
                     r = descend(kc, sc, pt, prm, kobj, ko, gtol, corr_iter, eig_floor, evc, k, s, max_jump)
                     started = True
             if not started:
                 evs = evaluate(k, s, pt, prm, kobj, ko)
+                n_eval += 1
                 r = descend(k, s, pt, prm, kobj, ko, gtol, corr_iter, eig_floor, evs, k, s, max_jump)
-            iters += r[5]
-            jump = max(abs(r[0] - k), abs(r[1] - s))
-            if r[6] <= STATUS_ROUNDOFF and jump <= max_jump:
+            iters += r.iterations
+            n_eval += r.evaluations
+            n_back += r.backtracks
+            jump = max(abs(r.kappa - k), abs(r.side_strain - s))
+            if r.status <= STATUS_ROUNDOFF and jump <= max_jump:
                 p = pt
-                k, s, U, gn, lmin, status, ev = r[0], r[1], r[2], r[3], r[4], r[6], r[7]
+                k, s, U, gn, lmin, status, ev = r.kappa, r.side_strain, r.energy, r.gradient_norm, r.min_eigenvalue, \
+                    r.status, r.evaluation
                 substeps += 1
-                if r[5] <= EASY_CORRECTOR_ITERATIONS:
+                if r.iterations <= EASY_CORRECTOR_ITERATIONS:
                     h = min(GROW * h, max_step)
                 continue
             if h > min_step:
@@ -394,32 +497,37 @@ def _make_parts(terms, jit=njit):
             # The branch ends within min_step of pressure: a fold. Descend to the minimum that remains.
             evs = evaluate(k, s, pt, prm, kobj, ko)
             r = descend(k, s, pt, prm, kobj, ko, gtol, max_iter, eig_floor, evs, k, s, math.inf)
-            iters += r[5]
+            iters += r.iterations
+            n_eval += 1 + r.evaluations
+            n_back += r.backtracks
             substeps += 1
-            if max(abs(r[0] - k), abs(r[1] - s)) > max_jump:
+            if max(abs(r.kappa - k), abs(r.side_strain - s)) > max_jump:
                 snapped = True
             p = pt
-            k, s, U, gn, lmin, status, ev = r[0], r[1], r[2], r[3], r[4], r[6], r[7]
+            k, s, U, gn, lmin, status, ev = r.kappa, r.side_strain, r.energy, r.gradient_norm, r.min_eigenvalue, \
+                r.status, r.evaluation
             h = STEP_AFTER_FOLD * max_step
-        return k, s, U, gn, lmin, iters, substeps, snapped, status, ev[7] if ev[0] else math.nan, ev
+        return Continuation(k, s, U, gn, lmin, iters, substeps, snapped, status,
+                            ev.volume_change if ev.ok else math.nan, n_eval, n_back, ev)
 
     @jit
     def follow_ev(k, s, p0, p1, prm, kobj, ko, opts):
         r = follow_from(k, s, p0, p1, prm, kobj, ko, opts, evaluate(k, s, p0, prm, kobj, ko))
-        return r[0], r[1], r[2], r[3], r[4], r[5], r[6], r[7], r[8], r[9]
+        return Solve(r.kappa, r.side_strain, r.energy, r.gradient_norm, r.min_eigenvalue, r.iterations, r.substeps,
+                     r.snapped, r.status, r.volume_change, 1 + r.evaluations, r.backtracks)
 
     return evaluate, minimise, follow_ev, follow_from
 
 
 _evaluate, _minimise, _follow_ev, step_state_from = _make_parts(mechanics.make_terms(
-    math.log, math.sin, math.cos, njit(mechanics._swhere), njit(mechanics._smax), abs, jit=njit
+    math.log, math.tan, njit(scalar_where), njit(scalar_max), abs, jit=njit
 )[1])
 step_state = _follow_ev
-# step_state_from(kappa~, e_s, p0, p1, prm, k~_obj, w kappa_obj, opts, ev0): step_state from a start whose energy
-# evaluation ev0 (the kernel's 10-tuple at (kappa~, e_s, p0)) is known; returns step_state's tuple and the evaluation
-# at the answer, so that a caller can keep it for the next step (pneunet_env.fused caches it: one evaluation less).
-"""The fast entry point: ``step_state(kappa~, e_s, p0, p1, prm, k~_obj, w kappa_obj, opts)`` returns
-``(kappa~, e_s, U, |grad|, lam_min, iterations, substeps, snapped, status, volume_change)``.
+# step_state_from(kappa~, e_s, p0, p1, prm, k~_obj, w kappa_obj, opts, ev0) -> Continuation: step_state from a start
+# whose energy evaluation ev0 (the kernel's Evaluation at (kappa~, e_s, p0)) is known; returns step_state's fields and
+# the evaluation at the answer, so that a caller can keep it for the next step (pneunet_env.fused caches it).
+"""The fast entry point: ``step_state(kappa~, e_s, p0, p1, prm, k~_obj, w kappa_obj, opts)`` returns a :class:`Solve`
+``(kappa~, e_s, U, |grad|, lam_min, iterations, substeps, snapped, status, volume_change, evaluations, backtracks)``.
 
 It is the compiled continuation behind :func:`solve_equilibrium` (see :func:`_make_parts`), from an equilibrium
 ``(kappa~, e_s)`` at ``p0`` to ``p1``, with no validation and
@@ -456,6 +564,11 @@ class Equilibrium(NamedTuple):
         status: the minimiser's code (:data:`STATUS_MESSAGES`; :attr:`message` gives the words).
         object_stiffness: ``k~_obj``.
         object_curvature: ``w kappa_obj``.
+        evaluations: energy evaluations the solve made (its work: what a step costs is about this times one
+            evaluation). A caller that already had the start's evaluation (the fused vector step's cache) makes one
+            fewer, and none where the pressure did not change and the start is a converged minimum; 0 where
+            nothing was solved (a rigid jaw, the linear model).
+        backtracks: line-search trials the solve rejected (each halves the Newton step).
     """
 
     pressure: Any
@@ -476,6 +589,8 @@ class Equilibrium(NamedTuple):
     status: Any
     object_stiffness: Any
     object_curvature: Any
+    evaluations: Any = 0
+    backtracks: Any = 0
 
     @property
     def state(self) -> tuple[Any, Any]:
@@ -499,29 +614,30 @@ def check_pressure(pressure: float, name: str = "pressure") -> float:
 _DEFAULT_PARAMS = ActuatorParams()
 
 
-def params_tuple(params: ActuatorParams | None) -> tuple[float, ...]:
-    """:meth:`ActuatorParams.as_tuple` ``(d, h_b, h_s, h_m, E_b, nu, J)`` without its deep copy; ``None``: defaults."""
+def params_tuple(params: ActuatorParams | None) -> ActuatorNumbers:
+    """The :class:`ActuatorNumbers` ``(d, h_b, h_s, h_m, E_b, nu, J)`` of ``params`` (:meth:`ActuatorParams.as_tuple`
+    without its deep copy); ``None``: the defaults."""
     if params is None:
         params = _DEFAULT_PARAMS
-    return (params.chamber_height, params.base_thickness, params.side_thickness, params.top_thickness,
-            params.base_modulus, params.poisson_ratio, params.gent_limit)
+    return ActuatorNumbers(params.chamber_height, params.base_thickness, params.side_thickness, params.top_thickness,
+                           params.base_modulus, params.poisson_ratio, params.gent_limit)
 
 
-def equilibrium(pressure, raw, chamber_height, object_stiffness, object_curvature) -> Equilibrium:
-    """The :class:`Equilibrium` of one :func:`step_state` result ``raw`` (the one place its tuple is unpacked)."""
-    k, s, U, gn, lmin, iters, substeps, snapped, status, dv = raw
+def equilibrium(pressure, raw: Solve, chamber_height, object_stiffness, object_curvature) -> Equilibrium:
+    """The :class:`Equilibrium` of one :func:`step_state` result ``raw``."""
+    k, s, status = raw.kappa, raw.side_strain, raw.status
     delta, force, touching = scalar_contact(k, object_stiffness, object_curvature)
     return Equilibrium(
-        pressure, k, s, chamber_height * (1.0 + s) * k, force, delta, touching, dv, U, gn, lmin,
-        STATUS_CONVERGED <= status <= STATUS_ROUNDOFF, iters, substeps, snapped, status, object_stiffness,
-        object_curvature,
+        pressure, k, s, chamber_height * (1.0 + s) * k, force, delta, touching, raw.volume_change, raw.energy,
+        raw.gradient_norm, raw.min_eigenvalue, STATUS_CONVERGED <= status <= STATUS_ROUNDOFF, raw.iterations,
+        raw.substeps, raw.snapped, status, object_stiffness, object_curvature, raw.evaluations, raw.backtracks,
     )
 
 
 def minimise_state(x0, pressure, params, object_stiffness=0.0, object_curvature=0.02, options=DEFAULT_OPTIONS):
     """Plain safeguarded descent from ``x0 = (kappa~, e_s)`` at fixed pressure (no continuation).
 
-    Returns ``(kappa~, e_s, U, |grad|, lam_min, iterations, status)``.
+    Returns a :class:`Minimum` ``(kappa~, e_s, U, |grad|, lam_min, iterations, status)``.
     """
     o = options
     return _minimise(float(x0[0]), float(x0[1]), float(pressure), params_tuple(params), float(object_stiffness),
@@ -571,7 +687,7 @@ def solve_equilibrium(
             raise ValueError(
                 f"initial must be None, an Equilibrium or a (curvature, side_strain) pair, got {initial!r}"
             ) from None
-        if not _evaluate(x0[0], x0[1], 0.0, prm, 0.0, 1.0)[0]:
+        if not _evaluate(x0[0], x0[1], 0.0, prm, 0.0, 1.0).ok:
             raise ValueError(f"initial state (curvature={x0[0]!r}, side_strain={x0[1]!r}) is outside the domain")
         if initial_pressure is not None:
             p0 = check_pressure(initial_pressure, "initial_pressure")
@@ -579,10 +695,11 @@ def solve_equilibrium(
         else:
             o = options
             r = _minimise(x0[0], x0[1], p, prm, kobj, kc, o.gtol, o.max_iter, o.eig_floor)
-            snapped = max(abs(r[0] - x0[0]), abs(r[1] - x0[1])) > o.max_jump
-            dv = _evaluate(r[0], r[1], p, prm, kobj, kc)[7]
-            out = (r[0], r[1], r[2], r[3], r[4], r[5], 0, snapped, r[6], dv)
-    return equilibrium(p, out, prm[0], kobj, kc)
+            snapped = max(abs(r.kappa - x0[0]), abs(r.side_strain - x0[1])) > o.max_jump
+            dv = _evaluate(r.kappa, r.side_strain, p, prm, kobj, kc).volume_change
+            out = Solve(r.kappa, r.side_strain, r.energy, r.gradient_norm, r.min_eigenvalue, r.iterations, 0, snapped,
+                        r.status, dv, r.evaluations + 1, r.backtracks)
+    return equilibrium(p, out, prm.chamber_height, kobj, kc)
 
 
 @dataclass(frozen=True)

@@ -279,3 +279,23 @@ def test_search_summary_splits_by_the_mechanics_regime():
 def test_strain_crush_fraction():
     assert strain_crush_fraction() == pytest.approx(0.3 / (0.010 * 4.0))
     assert math.isclose(strain_crush_fraction(CFG.replace(object_failure_strain=0.6)), 15.0)
+
+
+def test_a_ramp_holds_the_pressure_exactly_once_at_its_target():
+    """The observation is float32: the ramp sees its target only to within float32 rounding. Holding is an exact 0
+    action, so the command stays put (it used to creep by ~5e-8 of full scale a step, re-solving every step)."""
+    import gymnasium as gym
+
+    from agents.scripted import LinearRamp
+
+    ramp = LinearRamp(0.565, 20)
+    env = gym.make_vec("PneuNetGrasp-v0", num_envs=4, info_level="full", backend="numpy")
+    obs, _ = env.reset(seed=3)
+    pressures, ended = [], np.zeros(4, bool)
+    for _ in range(30):
+        obs, _, term, trunc, info = env.step(ramp(obs))
+        pressures.append(info["pressure"].copy())
+        ended |= term | trunc
+    env.close()
+    held = np.array(pressures[21:])[:, ~ended]  # the episodes still running: at their target since step 20
+    assert held.shape[1] >= 2 and np.all(held == held[0]) and np.all(ramp(obs)[~ended] == 0.0)

@@ -127,8 +127,10 @@ def test_the_command_line_takes_shipped_env_configs_by_name(tmp_path, monkeypatc
     monkeypatch.chdir(tmp_path)
     with pytest.raises(SystemExit) as err:
         main(["demo", "--config", "designed-kitchn"])
-    message = str(err.value.code)  # one line naming the value, the shipped names listed
-    assert message.startswith("pneunet-grasp demo: --config 'designed-kitchn'") and "designed-kitchen" in message
+    assert err.value.code == 2
+    line = capsys.readouterr().err.strip()  # one line naming the value, the shipped names listed
+    assert "\n" not in line and "designed-kitchen" in line
+    assert line.startswith("pneunet-grasp demo: error: --config 'designed-kitchn'")
     assert main(["solve", "--stiffness", "1e-3"]) == 0  # a command without --config is untouched
 
 

@@ -279,7 +279,7 @@ def _snapshot(folder: Path) -> dict[str, bytes]:
 def test_export_replaces_files_atomically(tmp_path, monkeypatch):
     """``--export`` never leaves the user without statistics: every file is staged beside its destination, then
     renamed; a failure part-way leaves the previous export whole, and no temporary file behind."""
-    import agents.train as train_mod
+    import agents.train_export as train_mod  # export's own module (agents.train re-exports it)
     from agents.policies import NormalizationStats
 
     dest = tmp_path / "models" / "ppo_x"

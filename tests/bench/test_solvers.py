@@ -13,13 +13,13 @@ pytest.importorskip("mpmath")
 pytest.importorskip("scipy")
 
 from pneunet_env import ActuatorParams, solve_equilibrium  # noqa: E402
-from pneunet_env.bench import solvers  # noqa: E402
+from pneunet_env.bench import solver_methods, solver_study, solvers  # noqa: E402
 from pneunet_env.bench.models import AUTO_TOLERANCE  # noqa: E402
 from pneunet_env.cli import main  # noqa: E402
 from pneunet_env.physics.solver import ACCEPT_GTOL  # noqa: E402
 
 OUTPUTS = ("solvers.json", "solvers_details.json", "speed_accuracy.png", "stability_map.png", "step_size.png")
-FAILURE_TEXTS = set(solvers._FAILURE_TEXT.values())
+FAILURE_TEXTS = set(solver_methods.FAILURE_TEXT.values())
 
 
 @pytest.fixture(scope="module")
@@ -187,7 +187,7 @@ def test_a_method_that_raises_is_a_recorded_nan_not_a_crash():
 def test_plain_newton_fails_at_contact_onset():
     """The Winkler term's Hessian jumps at contact: an unguarded Newton step from just out of contact overshoots."""
     method = next(m for m in solvers.make_methods() if m.name == "plain Newton")
-    ps = solvers._ramp(0.5, 0.1)
+    ps = solver_methods.ramp(0.5, 0.1)
     ref = solvers.reference_states(ps, 1e-2, 0.02, P)
     run = solvers.solve_path(method, ps, 1e-2, 0.02, P)
     outcomes = [solvers.classify(run.states[i], ref[i], p, 1e-2, 0.02, P)[0] for i, p in enumerate(ps)]
@@ -197,7 +197,7 @@ def test_plain_newton_fails_at_contact_onset():
 
 def test_anchored_ramp_always_holds_the_anchor():
     for dp in (0.01, 0.02, 0.05, 0.1, 0.2, 0.3, 0.4):
-        ps = solvers._anchored_ramp(0.639, 1.2, dp)
+        ps = solver_study.anchored_ramp(0.639, 1.2, dp)
         assert 0.639 in ps and max(ps) <= 1.2 and min(ps) > 0.0
         n = (len(ps) + 1) // 2
         assert np.all(np.diff(ps[:n]) > 0) and np.all(np.diff(ps[n - 1:]) < 0)
@@ -230,6 +230,6 @@ def test_package_solver_on_the_stiffest_catalogue_corner_matches_the_reference()
     outcomes = [solvers.classify(run.states[i], ref[i], p, k, c, scene.params) for i, p in enumerate(scene.pressures)]
     assert {o for o, _ in outcomes} == {"correct"}
     assert max(e for _, e in outcomes) <= 1e-9
-    grad, eig = solvers._stationarity(run.states, scene)
+    grad, eig = solver_study.stationarity(run.states, scene)
     assert grad <= ACCEPT_GTOL and eig > 0.0
     assert abs(ref[len(ref) // 2, 0] - c) < 0.01 * c  # at p~ = 1.2 the curvature is held within 1 % of the object's

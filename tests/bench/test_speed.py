@@ -6,7 +6,9 @@ import contextlib
 import io
 import json
 import math
+from pathlib import Path
 
+import numpy as np
 import pytest
 
 pytest.importorskip("matplotlib")
@@ -48,8 +50,10 @@ def test_json_holds_every_figure(quick_run):
                                             / single["median_step_s"]["CartPole-v1"])
     assert [r["num_envs"] for r in res["vector_env"]] == list(speed.NUM_ENVS)
     for r in res["vector_env"]:
-        pn, cp = r["steps_per_s"]["PneuNetGrasp-v0"], r["steps_per_s"]["CartPole-v1"]
-        assert pn > 0 and cp > 0 and r["ratio"] == pytest.approx(pn / cp)
+        cp = r["steps_per_s"]["CartPole-v1"]
+        for p in speed.POLICIES:
+            pn = r["steps_per_s"][f"PneuNetGrasp-v0 {p}"]
+            assert pn > 0 and cp > 0 and r["ratio"][p] == pytest.approx(pn / cp)
     s = res["solves"]
     assert s["solve_equilibrium_calls_per_s"] > 0 and s["step_state_calls_per_s"] > 0
     assert s["solve_batch_num_envs"] == 16384 and s["solve_batch_solves_per_s"] > 0
@@ -60,6 +64,9 @@ def test_json_holds_every_figure(quick_run):
     assert acc["solves"] > 10_000 and acc["converged_fraction"] == 1.0 and acc["nan_gradient_norms"] == 0
     assert 0.0 <= acc["worst_gradient_norm"] <= 1e-10
     assert res["targets"] == speed.TARGETS and math.isfinite(res["wall_s"])
+    for r in res["vector_env"]:  # the work per env-step, over at least one whole episode even in a quick run
+        for w in r["workload"].values():
+            assert w["env_steps"] >= speed.WORKLOAD_MIN_STEPS * r["num_envs"] and w["energy_evaluations"] > 0
 
 
 @pytest.mark.slow  # the benchmark's end-to-end quick run (its fixture takes 5-11 s)
@@ -68,3 +75,38 @@ def test_table_and_plot_from_a_result(tmp_path, quick_run):
     assert speed.format_table(res) in text
     speed.plot(res, tmp_path / "again.png")
     assert (tmp_path / "again.png").stat().st_size > 20_000
+
+
+def test_the_ramp_workload_is_the_shipped_best_ramp():
+    """The benchmark's ramp is ``best-ramp`` (``agents/best_ramp.json``) written without ``agents``: same actions."""
+    from agents.policies import make_policy
+
+    best = json.loads((Path(speed.__file__).resolve().parents[2] / "agents" / "best_ramp.json").read_text())
+    assert (speed.RAMP_TARGET_KPA, speed.RAMP_STEPS) == (best["target_kpa"], best["n_steps"])
+    shipped = make_policy("best-ramp").policy
+    ours = speed.ramp_policy()
+    obs = np.random.default_rng(0).uniform(0.0, 1.0, (512, 1)).astype(np.float32)
+    obs[:8, 0] = [0.0, shipped.target, np.float32(shipped.target), 1.0, 0.5, 0.6, 0.1, 0.565]
+    assert np.array_equal(ours(obs), shipped(obs))
+
+
+def test_workload_counts_per_env_step():
+    """The untimed pass's counts: contact and unchanged pressure under the ramp, episode ends, solver work."""
+    import gymnasium as gym
+
+    env = gym.make_vec("PneuNetGrasp-v0", num_envs=8, info_level="full", backend="numpy")
+    obs, _ = env.reset(seed=0)
+    infos: list = []
+    speed._vector_run(env, [None] * 60, infos, speed.ramp_policy(), obs)
+    env.close()
+    w = speed._workload(infos, None)
+    assert w["env_steps"] == 8 * 60
+    assert 0.0 < w["contact_share"] <= 1.0 and 0.0 < w["unchanged_pressure_share"] < 1.0
+    assert 0.0 < w["episode_end_share"] < 0.5  # 60 steps cover at least one episode end per env
+    assert w["newton_iterations"] > 0 and w["substeps"] >= 1.0
+    # the solver's own work counters (issue 23): every step evaluates the energy at least once per Newton iteration
+    assert w["energy_evaluations"] >= w["newton_iterations"] and w["backtracks"] >= 0.0
+    streamed = speed._Work(None)
+    for info in infos:
+        streamed.append(info)
+    assert streamed.result() == w

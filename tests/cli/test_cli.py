@@ -194,9 +194,7 @@ def test_the_library_below_the_cli_draws_no_bars():
 
 
 def test_tqdm_is_imported_only_by_the_helper():
-    # pneunet_env/paper/figures.py still draws its own bar (generate(show_progress=...)); the figures command
-    # turns it on only where the helper would (progress_enabled).
-    allowed = {ROOT / "pneunet_env/progress.py", ROOT / "pneunet_env/paper/figures.py"}
+    allowed = {ROOT / "pneunet_env/progress.py"}
     for path in [*ROOT.joinpath("pneunet_env").rglob("*.py"), *ROOT.joinpath("agents").rglob("*.py")]:
         if path not in allowed:
             assert not any(m.split(".")[0] == "tqdm" for m in _imported_modules(path)), path

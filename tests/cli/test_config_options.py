@@ -41,13 +41,14 @@ def _config_with_ramp(tmp_path: Path, target: float = 0.5, n_steps: int = 10) ->
 # ------------------------------------------------------------------------------------------------ bad options
 @pytest.mark.parametrize("command", ["map", "demo"])
 @pytest.mark.parametrize("case", list(BAD_OPTIONS))
-def test_bad_option_is_a_one_line_error_naming_it(command, case, tmp_path):
+def test_bad_option_is_a_one_line_error_naming_it(command, case, tmp_path, capsys):
     args, named = BAD_OPTIONS[case]
     with pytest.raises(SystemExit) as exc:
         main([command, *args, "--out" if command == "map" else "--json", str(tmp_path / "out")])
-    message = str(exc.value.code)
-    assert message.startswith(f"pneunet-grasp {command}: ")
-    assert named in message and "\n" not in message
+    assert exc.value.code == 2  # an argument error's status; the message is on stderr, one line
+    err = capsys.readouterr().err
+    assert err.startswith(f"pneunet-grasp {command}: error: ") and err.count("\n") == 1
+    assert named in err and named in str(exc.value) and "Traceback" not in err
     assert not (tmp_path / "out").exists()  # nothing ran
 
 

@@ -359,7 +359,61 @@ def test_lean_info_keys_and_the_objects_constants_at_reset():
     full = gym.make("PneuNetGrasp-v0", info_level="full")
     _, info_r = full.reset(seed=3)
     _, _, _, _, info_f = full.step(np.array([1.0], np.float32))
-    assert len(info_f) == 45 and set(task.LEAN_KEYS) | set(task.OBJECT_KEYS) <= set(info_f)
+    assert set(info_f) == set(task.FULL_KEYS) and set(task.LEAN_KEYS) | set(task.OBJECT_KEYS) <= set(info_f)
     assert all(info_f[k] == info[k] for k in task.LEAN_KEYS)  # the lean keys are the full info's, unchanged
     with pytest.raises(ValueError, match="info_level"):
         gym.make("PneuNetGrasp-v0", info_level="everything")
+
+
+# ---- one shell for the single envs ---------------------------------------------------------------------------
+
+
+def test_single_envs_share_one_base_and_write_only_their_own_private_fields():
+    """``PneuNetGraspEnv`` and ``RigidGraspEnv`` derive from one base (:mod:`pneunet_env.envs.base`), and no module of
+    ``pneunet_env/envs`` assigns another object's private attribute (``env._state = ...``; the old
+    ``grasp.single_env_step`` wrote the rigid env's)."""
+    import ast
+    from pathlib import Path
+
+    from pneunet_env.envs.base import SingleGraspEnv
+    from pneunet_env.envs.rigid import RigidGraspEnv
+
+    assert issubclass(PneuNetGraspEnv, SingleGraspEnv) and issubclass(RigidGraspEnv, SingleGraspEnv)
+    for cls in (PneuNetGraspEnv, RigidGraspEnv):  # the shared glue is written once, in the base
+        assert "reset" not in vars(cls) and "step" not in vars(cls), cls.__name__
+    bad = []
+    for path in sorted(Path(pneunet_env.__file__).parent.joinpath("envs").glob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text())):
+            targets = node.targets if isinstance(node, ast.Assign) else (
+                [node.target] if isinstance(node, (ast.AugAssign, ast.AnnAssign)) else [])
+            for t in targets:
+                if (isinstance(t, ast.Attribute) and t.attr.startswith("_") and not t.attr.startswith("__")
+                        and not (isinstance(t.value, ast.Name) and t.value.id in ("self", "cls"))):
+                    bad.append(f"{path.name}:{node.lineno} {ast.unparse(t)}")
+    assert not bad, f"private fields of other objects written: {bad}"
+
+
+def test_rigid_env_is_stepped_by_the_shared_shell():
+    """The rigid env through the base's reset and step: ResetNeeded before reset and past an episode's end, the jaw
+    closure as the command (the task's command ceiling holds the travel in mm), and its render refusal named."""
+    from pneunet_env.envs.rigid import RigidGraspEnv, jaw_task_params
+
+    env = gym.make("RigidGrasp-v0").unwrapped
+    with pytest.raises(ResetNeeded, match="call reset"):
+        env.step(np.ones(1, np.float32))
+    env.reset(seed=0)
+    assert env.equilibrium is env.state.eq
+    obs, *_ = env.step(np.ones(1, np.float32))
+    assert env.state.command == pytest.approx(env.jaw_step_mm)
+    assert obs[0] == pytest.approx(env.jaw_step_mm / env.jaw_travel_mm)
+    tp = jaw_task_params(task.EnvParams.from_config(env.config), 12.0, 0.5).task
+    assert (tp.pressure_max, tp.pressure_step) == (12.0, 0.5)
+    for _ in range(200):
+        *_, terminated, truncated, info = env.step(np.ones(1, np.float32))
+        if terminated or truncated:
+            break
+    assert "is_success" in info
+    with pytest.raises(ResetNeeded, match="ended"):
+        env.step(np.ones(1, np.float32))
+    with pytest.raises(ValueError, match="RigidGrasp-v0 does not render"):
+        RigidGraspEnv(render_mode="rgb_array")

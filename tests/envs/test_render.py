@@ -432,5 +432,68 @@ def test_render_command_refuses_a_frame_too_small_for_its_label(tmp_path):
     assert not (tmp_path / "frames").exists() and not (tmp_path / "s.png").exists()
 
 
+# The renderer's core: the scene, the rasteriser, the palette, the font, the PNG codec and the public module.
+RENDER_CORE = ("render", "scene", "raster", "palette", "font", "png")
+
+
+def _imports(path: Path, top_level_only: bool = False) -> set[str]:
+    """The modules a file imports (every import, or only those at the module's top level)."""
+    import ast
+
+    tree = ast.parse(path.read_text())
+    nodes = tree.body if top_level_only else ast.walk(tree)
+    out: set[str] = set()
+    for node in nodes:
+        if isinstance(node, ast.Import):
+            out |= {a.name for a in node.names}
+        elif isinstance(node, ast.ImportFrom) and node.module:
+            out.add(node.module)
+    return out
+
+
+def test_the_render_core_imports_neither_matplotlib_nor_pillow():
+    envs = Path(pneunet_env.__file__).parent / "envs"
+    for name in RENDER_CORE:
+        bad = {m for m in _imports(envs / f"{name}.py") if m.split(".")[0] in ("matplotlib", "PIL")}
+        assert not bad, (name, bad)
+    # the human window imports matplotlib, but only when one is opened
+    viewer = envs / "viewer.py"
+    assert "matplotlib" in _imports(viewer) and not any(
+        m.split(".")[0] == "matplotlib" for m in _imports(viewer, top_level_only=True))
+    # one concern a module, each under the house size (render.py held all of them, 972 lines)
+    for name in (*RENDER_CORE, "viewer"):
+        assert len((envs / f"{name}.py").read_text().splitlines()) <= 800, name
+
+
+def test_drawing_and_saving_a_frame_loads_neither_matplotlib_nor_pillow(tmp_path):
+    import subprocess
+
+    code = ("import sys\nfrom pneunet_env.envs.render import contact_sheet, render_frame, save_png\n"
+            "from pneunet_env.envs.scene import RenderState\nfrom pneunet_env.physics.params import ActuatorParams\n"
+            "s = RenderState(0.2, 0.1, ActuatorParams(), 0.5, 0.02, 2.0, 1e-3, 0.5, True, 0.5, 2.0, 2e-3, False, "
+            "False, False, 0.3, 0.5)\n"
+            f"save_png({str(tmp_path / 'f.png')!r}, contact_sheet([render_frame(s)], 1))\n"
+            "loaded = sorted(m for m in sys.modules if m.split('.')[0] in ('matplotlib', 'PIL'))\n"
+            "assert not loaded, loaded\n")
+    subprocess.run([sys.executable, "-c", code], check=True)
+    assert read_png(tmp_path / "f.png").shape[1] == 480 + 2 * 4
+
+
+def test_save_png_is_atomic(tmp_path, monkeypatch):
+    """A failure half-way leaves the old file whole and no temporary file behind (the old writer wrote in place)."""
+    import os
+
+    path = save_png(tmp_path / "f.png", np.zeros((4, 5, 3), np.uint8))
+    before = path.read_bytes()
+
+    def fail(src, dst):
+        raise OSError("disk full")
+
+    monkeypatch.setattr(os, "replace", fail)
+    with pytest.raises(OSError, match="disk full"):
+        save_png(path, np.full((6, 7, 3), 9, np.uint8))
+    assert path.read_bytes() == before and sorted(p.name for p in tmp_path.iterdir()) == ["f.png"]
+
+
 if __name__ == "__main__":  # python tests/envs/test_render.py: rewrite the reference frames
     sys.exit(_write_reference_frames())

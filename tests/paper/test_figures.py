@@ -157,6 +157,56 @@ def test_table_round_trip(tmp_path):
             assert r[name].tolist() == t[name].tolist(), name
 
 
+def test_a_failed_write_leaves_the_old_csv_and_png_whole(tmp_path, monkeypatch):
+    """The CSV and the PNG are written atomically: a failure half-way (here the final rename) leaves the files as
+    they were and no temporary file (the CSV used to be written in place)."""
+    import os
+
+    import matplotlib.pyplot as plt
+
+    from pneunet_env.paper import plots
+
+    table = linear_rows(ActuatorParams(), pressure_grid(0.1))  # closed form: no solve
+    csv, png = tmp_path / "supp_fig3.csv", tmp_path / "supp_fig3.png"
+    csv.write_text("old csv\n")
+    png.write_bytes(b"old png")
+
+    def fail(src, dst):
+        raise OSError("disk full")
+
+    monkeypatch.setattr(os, "replace", fail)
+    with pytest.raises(OSError, match="disk full"):
+        write_table(table, csv)
+    fig = plt.figure(figsize=(2, 2))
+    with pytest.raises(OSError, match="disk full"):
+        plots._finish(fig, png, "a note")  # every plot_* ends here
+    assert csv.read_text() == "old csv\n" and png.read_bytes() == b"old png"
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["supp_fig3.csv", "supp_fig3.png"]
+    assert not plt.fignum_exists(fig.number)  # the figure is closed even when its save failed
+
+
+@pytest.mark.parametrize("name", ["figures", "tables", "data", "plots", "checks", "checks_common", "checks_grasp",
+                                  "checks_design"])
+def test_paper_modules_are_sized_by_concern_and_write_no_file_in_place(name):
+    path = Path(paper.__file__).parent / f"{name}.py"
+    assert len(path.read_text().splitlines()) <= 800, name
+    writes = [ast.unparse(node.func) for node in ast.walk(ast.parse(path.read_text()))
+              if isinstance(node, ast.Call) and (
+                  (isinstance(node.func, ast.Attribute) and node.func.attr in ("savefig", "write_text", "write_bytes"))
+                  or (isinstance(node.func, ast.Name) and node.func.id == "open"
+                      and any(isinstance(a, ast.Constant) and "w" in str(a.value) for a in node.args[1:2])))]
+    assert not writes, (name, writes)  # CSVs through pneunet_env.files.atomic_write_text, PNGs through save_figure
+
+
+def test_the_paper_modules_draw_their_bars_with_the_progress_helper():
+    """No module of ``pneunet_env.paper`` imports tqdm: the figures' bar is ``pneunet_env.progress``'s."""
+    for path in sorted(Path(paper.__file__).parent.glob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text())):
+            names = ([a.name for a in node.names] if isinstance(node, ast.Import)
+                     else [node.module or ""] if isinstance(node, ast.ImportFrom) else [])
+            assert not any(n.split(".")[0] == "tqdm" for n in names), path.name
+
+
 def test_intermediate_object_snaps_with_hysteresis():
     """Fig. 2's k~ = 1e-4: a fold on loading, one on unloading at a lower pressure, the window in between."""
     spec = CurveSpec("x", "k", ActuatorParams(gent_limit=15.0), 1e-4)
@@ -265,8 +315,16 @@ def _paper_imports() -> dict[str, set[str]]:
 
 def test_paper_import_graph_is_acyclic():
     graph = _paper_imports()
-    assert graph["figures"] == set() and graph["checks"] == {"figures"}
+    # the layers, bottom up: the tables (CSV); the curves' data; the plots; the figures' registry and driver; the
+    # statements (shared helpers, then by section, then the list); the command line on top
+    assert graph["tables"] == set() and graph["data"] == {"tables"} and graph["plots"] == {"data", "tables"}
+    assert graph["figures"] == {"data", "plots", "tables"}
+    assert graph["checks_common"] == {"data", "tables"}
+    assert graph["checks_grasp"] == graph["checks_design"] == {"checks_common", "data", "tables"}
+    assert graph["checks"] == {"checks_common", "checks_grasp", "checks_design", "figures"}
     assert graph["command"] == {"figures", "checks"} and graph["__init__"] == set()
+    assert set(graph) == {"__init__", "tables", "data", "plots", "figures", "checks_common", "checks_grasp",
+                          "checks_design", "checks", "command"}
     done: set[str] = set()
 
     def visit(node: str, stack: tuple[str, ...]) -> None:

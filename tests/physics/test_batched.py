@@ -26,7 +26,8 @@ BACKENDS = ["numpy"] + (["numba"] if HAVE_NUMBA else [])
 
 
 def scalar_reference(k, s, p0, p1, kobj, ko, params=None, options=DEFAULT_OPTIONS):
-    """``step_state`` env by env: rows of (k, s, U, |g|, lmin, iters, substeps, snapped, status, dV)."""
+    """``step_state`` env by env: rows of (k, s, U, |g|, lmin, iters, substeps, snapped, status, dV, evaluations,
+    backtracks)."""
     prm, opts = params_tuple(params), options.as_tuple()
     n = len(k)
     kobj, ko, p0, p1 = (np.broadcast_to(np.asarray(a, float), (n,)) for a in (kobj, ko, p0, p1))
@@ -53,6 +54,8 @@ def assert_matches(result: Equilibrium, ref: np.ndarray, tol: float = 1e-10) -> 
     # between numpy's and libm's elementary functions, so allow a few envs to differ there.
     assert np.mean(result.iterations == ref[:, 5]) >= 0.98
     assert np.mean(result.substeps == ref[:, 6]) >= 0.98
+    assert np.mean(result.evaluations == ref[:, 10]) >= 0.98  # the work counters, counted the same way
+    assert np.mean(result.backtracks == ref[:, 11]) >= 0.98
 
 
 @pytest.fixture(scope="module")

@@ -90,3 +90,41 @@ def test_catalogue_extremes_converge_and_match_30_digits(name, kobj, c):
     top = path.equilibria[19]  # p~ = 1.2
     k, s = reference_minimum(1.2, kobj, c, params, top.state, digits=30)
     assert abs(top.curvature - k) <= 1e-9 * abs(k) and abs(top.side_strain - s) <= 1e-9 * abs(s)
+
+
+def test_the_energy_kernel_matches_the_30_digit_energy_and_gradient():
+    """The compiled kernel (written with reciprocals and one ``tan``) against the independent mpmath energy and its
+    derivatives at 30 digits, at states of the env's range (free, touching, near the series switch, high strain):
+    round-off only."""
+    import math
+
+    import numpy as np
+
+    from pneunet_env.physics import solver
+    from pneunet_env.physics.reference import reference_energy
+
+    mp = mpmath.mp
+    params = ActuatorParams()
+    prm = solver.params_tuple(params)
+    rng = np.random.default_rng(11)
+    points = [(0.0, 0.0, 0.0, 0.0, 0.02), (0.0999, 0.05, 0.3, 0.0, 0.02), (0.1001, 0.05, 0.3, 1e-3, 0.02)]
+    points += [(float(rng.uniform(0.0, 1.0)), float(rng.uniform(0.0, 0.5)), float(rng.uniform(0.0, 1.2)),
+                float(rng.choice([0.0, 10.0 ** rng.uniform(-5, -1)])), float(rng.uniform(0.01, 0.5)))
+               for _ in range(12)]
+    checked = 0
+    with mp.workdps(40):
+        for k, s, p, kobj, ko in points:
+            ev = solver._evaluate(k, s, p, prm, kobj, ko)
+            assert ev.ok
+            f = lambda a, b, p=p, kobj=kobj, ko=ko: reference_energy(mp, a, b, p, params, kobj, ko)  # noqa: E731
+            x = [mp.mpf(k), mp.mpf(s)]
+            u = f(*x)
+            assert abs(ev.energy - float(u)) <= 1e-14 * max(1.0, abs(float(u))), (k, s, p)
+            if k < 1e-3 or abs(k - ko) < 1e-3:  # the edge k = 0; the contact's kink at k = ko
+                continue
+            checked += 1
+            for got, order in ((ev.g_kappa, (1, 0)), (ev.g_strain, (0, 1)), (ev.h_kk, (2, 0)), (ev.h_ks, (1, 1)),
+                               (ev.h_ss, (0, 2))):
+                want = float(mp.diff(f, x, order))
+                assert math.isclose(got, want, rel_tol=1e-12, abs_tol=1e-12), (k, s, p, order, got, want)
+    assert checked >= 12 and any(k > ko and kobj > 0.0 for k, _, _, kobj, ko in points)

@@ -255,3 +255,59 @@ def test_the_envs_warn_beyond_the_measured_contact_ratio():
     vec = gym.make_vec("PneuNetGrasp-Paper-v0", num_envs=2)
     with pytest.warns(UserWarning, match="measured to converge"):
         vec.reset(seed=0, options={"object_stiffness": np.array([1e-3, 10.0])})
+
+
+def _counting_solver():
+    """A pure-Python instance of the solver over a kernel that counts its calls (the compiled one counts itself)."""
+    from pneunet_env.physics import solver
+    from pneunet_env.physics.xp import identity, scalar_max, scalar_where
+
+    terms = mechanics.make_terms(math.log, math.tan, scalar_where, scalar_max, abs)[1]
+    calls = [0]
+
+    def counted(*args):
+        calls[0] += 1
+        return terms(*args)
+
+    return solver._make_parts(counted, jit=identity), calls
+
+
+def test_the_work_counters_count_the_kernel_calls():
+    """``evaluations`` is the number of energy kernel calls a solve made (counted independently, on a pure-Python
+    instance of the same solver), from the continuation, the cached start and the descent alike; ``backtracks``
+    counts rejected line-search trials, so loading from rest (where the first Newton steps overshoot) has some."""
+    from pneunet_env.physics.solver import DEFAULT_OPTIONS, params_tuple, step_state, step_state_from
+
+    (evaluate, minimise, follow_ev, follow_from), calls = _counting_solver()
+    prm, opts = params_tuple(None), DEFAULT_OPTIONS.as_tuple()
+    rng = np.random.default_rng(5)
+    cases = [(0.0, 0.0, 0.0, 0.9, 0.0, 0.02), (0.0, 0.0, 0.0, 0.70, 1e-4, 0.02)]  # from rest; across the fold
+    for _ in range(25):
+        kobj = float(rng.choice([0.0, 10.0 ** rng.uniform(-5, -1)]))
+        p0 = float(rng.uniform(0.0, 1.2))
+        eq = solve_equilibrium(p0, kobj, 0.02)
+        cases.append((eq.curvature, eq.side_strain, p0, float(np.clip(p0 + rng.uniform(-0.1, 0.1), 0, 1.2)), kobj,
+                      0.02))
+    backtracks = 0
+    for k, s, p0, p1, kobj, ko in cases:
+        calls[0] = 0
+        ref = follow_ev(k, s, p0, p1, prm, kobj, ko, opts)
+        n = calls[0]
+        r = step_state(k, s, p0, p1, prm, kobj, ko, opts)
+        # the same control flow (numba's and Python's libm may differ in a last bit, never here in a decision)
+        assert (r.iterations, r.substeps, r.status, r.evaluations, r.backtracks) == \
+            (ref.iterations, ref.substeps, ref.status, n, ref.backtracks), (k, s, p0, p1, kobj)
+        assert abs(r.kappa - ref.kappa) <= 1e-12
+        ev0 = evaluate(k, s, p0, prm, kobj, ko)
+        calls[0] = 0
+        follow_from(k, s, p0, p1, prm, kobj, ko, opts, ev0)
+        assert step_state_from(k, s, p0, p1, prm, kobj, ko, opts, ev0).evaluations == calls[0] == n - 1
+        calls[0] = 0
+        m = minimise(k, s, p1, prm, kobj, ko, 1e-11, 200, 1e-10)
+        assert m.evaluations == calls[0]
+        backtracks += r.backtracks
+        assert r.evaluations >= r.iterations + 1 + r.substeps  # a start, a trial per iteration, a start per sub-step
+    assert backtracks > 0
+    eq = solve_equilibrium(0.9)
+    assert (eq.evaluations, eq.backtracks) == tuple(step_state(0.0, 0.0, 0.0, 0.9, prm, 0.0, 0.02, opts)[-2:])
+    assert solve_equilibrium(0.5, initial=(eq.curvature, eq.side_strain)).evaluations > 0
