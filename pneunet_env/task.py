@@ -73,7 +73,8 @@ from pneunet_env.physics.solver import (
     solve_equilibrium,
     step_state,
 )
-from pneunet_env.physics.xp import NUMPY, SCALAR, Ops
+from pneunet_env.physics.xp import SCALAR, Ops
+from pneunet_env.records import fresh_arrays, leaves, merge, take  # noqa: F401  (re-exported)
 from pneunet_env.task_objects import (
     CATALOGUE_DRAWS,
     PIN_KEYS,
@@ -463,57 +464,6 @@ def step(state: EnvState, action, params: EnvParams, contact: Contact) -> Step:
     obs = observation(command, eq.volume_change, tp, params.volume_scale)
     new = EnvState(command, eq, state.obj, state.thresholds, out.state)
     return Step(new, obs, out.reward, out.terminated, out.truncated, solve, out, clipped, failed)
-
-
-def _fields(record) -> tuple:
-    if isinstance(record, tuple):
-        return tuple(record)
-    return tuple(getattr(record, f.name) for f in dataclasses.fields(record))
-
-
-def leaves(record) -> list:
-    """The arrays of a record (NamedTuple or dataclass, nested), in field order."""
-    out = []
-    for a in _fields(record):
-        if isinstance(a, tuple) or dataclasses.is_dataclass(a):
-            out.extend(leaves(a))
-        else:
-            out.append(a)
-    return out
-
-
-def merge(old, idx, new, ops: Ops = NUMPY, own: frozenset[int] | None = None):
-    """A record (NamedTuple or dataclass, nested): ``old`` with entries ``idx`` replaced by ``new``'s.
-
-    ``own=None``: every array (of the namespace ``ops``) is copied, never changed in place, so a state handed out
-    earlier stays as it was. ``own``: the ids of ``old``'s arrays that nothing else holds (fresh this step, handed
-    out to no one): those are written in place, the others copied first (the values are the same either way).
-    """
-    out = []
-    for a, b in zip(_fields(old), _fields(new), strict=True):
-        if isinstance(a, tuple) or dataclasses.is_dataclass(a):
-            out.append(merge(a, idx, b, ops, own))
-        else:
-            c = a if own is not None and id(a) in own else ops.copy(a)
-            c[idx] = b
-            out.append(c)
-    return type(old)(*out)
-
-
-def take(record, idx):
-    """The entries ``idx`` of every array of a record (NamedTuple or dataclass, nested): a record of fresh arrays."""
-    return type(record)(*(take(a, idx) if isinstance(a, tuple) or dataclasses.is_dataclass(a) else a[idx]
-                          for a in _fields(record)))
-
-
-def fresh_arrays(state, earlier) -> frozenset[int]:
-    """The ids of ``state``'s arrays that ``earlier`` (a state handed out before) does not hold, each held once in
-    ``state``: what :func:`autoreset` may write in place."""
-    held = {id(a) for a in leaves(earlier)}
-    seen: dict[int, int] = {}
-    for a in leaves(state):
-        seen[id(a)] = seen.get(id(a), 0) + 1
-    return frozenset(i for i, count in seen.items() if count == 1 and i not in held)
 
 
 def autoreset(state: EnvState, idx, obj: GraspObject, params: EnvParams, contact: Contact,

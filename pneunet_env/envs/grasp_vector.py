@@ -96,7 +96,8 @@ def _check_num_envs(num_envs) -> int:
         raise ValueError(f"num_envs must be a positive integer, got {num_envs!r}")
     top = max_num_envs()
     if n > top:
-        raise ValueError(f"num_envs={n} is too large: it would need about {n * BYTES_PER_ENV / 2**30:.3g} GiB "
+        need = f"{n * BYTES_PER_ENV / 2**30:.3g}" if n < 2**900 else "more than 1e270"  # a float holds it
+        raise ValueError(f"num_envs={n} is too large: it would need about {need} GiB "
                          f"({BYTES_PER_ENV} bytes per sub-env), more than this machine's memory allows "
                          f"(at most {top} envs)")
     return n

@@ -105,6 +105,12 @@ def harness(tmp_path_factory):
     h.close()
 
 
+def _ctrl_c_reaches_python() -> None:
+    """In the child, before Python starts: SIGINT back to its default. A test run started in the background of a
+    non-interactive shell inherits SIGINT ignored, and Python then leaves it ignored (as a user's `cmd &` is)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def _leftovers(folder: Path) -> list[str]:
     return sorted(str(p) for p in folder.rglob("*") if p.name.endswith((".tmp", ".lock")) or ".tmp." in p.name)
 
@@ -216,7 +222,7 @@ def test_ctrl_c_ends_the_real_command_with_130_and_one_line(tmp_path):
     env = {**os.environ, "PYTHONPATH": str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""), "MPLBACKEND": "Agg"}
     argv = [sys.executable, "-m", "pneunet_env.cli", *TRAIN, "--timesteps", "100000", "--run-dir", str(run_dir)]
     proc = subprocess.Popen(argv, cwd=tmp_path, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                            text=True)
+                            text=True, preexec_fn=_ctrl_c_reaches_python)
     deadline = time.monotonic() + 120
     while not list((run_dir / "checkpoints").glob("model_*_steps.zip")) and time.monotonic() < deadline:
         assert proc.poll() is None, proc.stderr.read()

@@ -101,16 +101,17 @@ def _rss_bytes() -> int:
 
 @pytest.mark.slow
 @pytest.mark.skipif(not os.path.exists("/proc/self/statm"), reason="reads /proc/self/statm (Linux)")
-def test_torch_memory_stays_flat_over_10000_steps_of_grad_requiring_actions():
-    """10,000 steps (about 100 episodes, with auto-resets) of actions from a tensor that requires grad: no state
+def test_torch_memory_stays_flat_over_3000_steps_of_grad_requiring_actions():
+    """3,000 steps (about 30 episodes, with auto-resets) of actions from a tensor that requires grad: no state
     tensor ever carries a graph, and the resident memory after the first 1,000 steps grows by less than 64 MB. (The
-    graph kept before grew by about 10 MB per step at N = 4: the graph check on the first step stops that at once.)"""
+    graph kept before grew by about 10 MB per step at N = 4: the graph check on the first step stops that at once.
+    The same test over 10,000 steps passed when it was written, in 297 s on a loaded machine: too long for CI.)"""
     n = 4
     env = PneuNetGraspVectorEnv(n, backend="torch", info_keys=())
     env.reset(seed=0)
     w = torch.zeros(n, 1, requires_grad=True)
     base = None
-    for i in range(10_000):
+    for i in range(3_000):
         env.step(torch.tanh(w + 0.3 * math.sin(i / 7.0)))
         if i == 999:
             base = _rss_bytes()
@@ -123,7 +124,7 @@ def test_torch_memory_stays_flat_over_10000_steps_of_grad_requiring_actions():
 # ---- 2. num_envs too large for the machine --------------------------------------------------------------------
 
 
-@pytest.mark.parametrize("n", [10**10, 10**30, "max+1"])
+@pytest.mark.parametrize("n", [10**10, 10**30, 10**400, "max+1"])
 def test_an_impossible_num_envs_is_refused_by_name_before_allocating(n):
     if n == "max+1":
         n = max_num_envs() + 1
@@ -476,7 +477,7 @@ def test_vector_env_reset_options_work_or_are_named(backend, seed, options):
 
 
 @pytest.mark.slow
-@LONG
+@settings(max_examples=200, deadline=None, derandomize=True, suppress_health_check=[HealthCheck.too_slow])
 @given(backend=st.sampled_from(["auto", "numpy", "torch"]), seed=SEEDS, options=OPTIONS)
 def test_vector_env_reset_options_work_or_are_named_long(backend, seed, options):
     _one_reset(backend, seed, options)
