@@ -40,7 +40,6 @@ from __future__ import annotations
 import argparse
 import io
 import json
-import os
 import pickle
 import platform
 import re
@@ -55,7 +54,6 @@ from agents.policies import (
     NormalizationStats,
     atomic_write_bytes,
     check_model_zip,
-    stage_file,
 )
 from agents.train_config import (  # noqa: F401  (re-exported: the config's names, as before the move)
     ALGOS,
@@ -80,7 +78,7 @@ from agents.train_envs import batched_available, make_callbacks, make_vec_env, r
 from agents.train_export import export, export_source
 from pneunet_env.arguments import count, integer, output_dir, output_file, real
 from pneunet_env.arguments import seed as seed_type
-from pneunet_env.files import atomic_write_json, atomic_write_text, deferred_interrupt
+from pneunet_env.files import atomic_write_json, atomic_write_many, atomic_write_text, deferred_interrupt
 from pneunet_env.locks import RunLock
 from pneunet_env.yamlio import dump_yaml, load_json_file
 
@@ -122,17 +120,7 @@ def _save_model(model, stem: Path) -> Path:
         outputs += [(stem.with_name(stem.name + STATS_SUFFIX), (json.dumps(stats, indent=1) + "\n").encode()),
                     (stem.with_name(stem.name + "_vecnormalize.pkl"), pickle.dumps(vn))]
     outputs.append((stem.with_name(stem.name + ".zip"), _model_bytes(model)))
-    staged: list[tuple[Path, Path]] = []
-    with deferred_interrupt():  # a Ctrl-C is raised once every file is in place (or every temporary one gone)
-        try:
-            for final, content in outputs:
-                staged.append((stage_file(final, content), final))
-            for tmp, final in staged:
-                os.replace(tmp, final)
-        finally:
-            for tmp, _ in staged:
-                tmp.unlink(missing_ok=True)
-    return outputs[-1][0]
+    return atomic_write_many(outputs)[-1]  # a Ctrl-C is raised once every file is in place
 
 
 def _save_checkpoint(model, folder: Path) -> Path:

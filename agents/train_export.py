@@ -6,13 +6,12 @@ export whole. The policy registry (:mod:`agents.policies`) then loads ``PATH_STE
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 from typing import Any
 
-from agents.policies import STATS_SUFFIX, NormalizationStats, load_pickled_vecnormalize, stage_file
+from agents.policies import STATS_SUFFIX, NormalizationStats, load_pickled_vecnormalize
 from agents.train_config import action_mode
-from pneunet_env.files import deferred_interrupt
+from pneunet_env.files import atomic_write_many, deferred_interrupt
 
 __all__ = ["export", "export_source"]
 
@@ -46,16 +45,8 @@ def export(run_dir: Path, dest: Path, record: dict[str, Any]) -> Path:
     if stats is not None:
         outputs.append((stats_dest, (json.dumps(stats.to_dict(), indent=1) + "\n").encode()))
     outputs.append((dest.with_suffix(".json"), (json.dumps(meta, indent=1, default=str) + "\n").encode()))
-    staged: list[tuple[Path, Path]] = []
     with deferred_interrupt():  # a Ctrl-C is raised once the export is whole (or the previous one untouched)
-        try:
-            for final, content in outputs:
-                staged.append((stage_file(final, content), final))
-            for tmp, final in staged:
-                os.replace(tmp, final)
-        finally:
-            for tmp, _ in staged:
-                tmp.unlink(missing_ok=True)
+        atomic_write_many(outputs)
         if stats is None:
             stats_dest.unlink(missing_ok=True)
     return zip_path

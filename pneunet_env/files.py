@@ -18,8 +18,8 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-__all__ = ["atomic_write_bytes", "atomic_write_json", "atomic_write_text", "deferred_interrupt", "save_figure",
-           "stage_file"]
+__all__ = ["atomic_write_bytes", "atomic_write_json", "atomic_write_many", "atomic_write_text", "deferred_interrupt",
+           "save_figure", "stage_file"]
 
 
 @contextlib.contextmanager
@@ -89,6 +89,23 @@ def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
             tmp.unlink(missing_ok=True)
             raise
     return path
+
+
+def atomic_write_many(outputs: list[tuple[str | Path, bytes | Path]]) -> list[Path]:
+    """Several files written as one: each ``(path, content)`` staged beside its path (:func:`stage_file`), then all
+    renamed into place. A failure while staging leaves every old file untouched and no temporary file; a Ctrl-C is
+    held until every file is in place (or every temporary one removed). Returns the paths, in order."""
+    staged: list[tuple[Path, Path]] = []
+    with deferred_interrupt():
+        try:
+            for final, content in outputs:
+                staged.append((stage_file(final, content), Path(final)))
+            for tmp, final in staged:
+                os.replace(tmp, final)
+        finally:
+            for tmp, _ in staged:
+                tmp.unlink(missing_ok=True)
+    return [Path(final) for final, _ in outputs]
 
 
 def atomic_write_text(path: str | Path, text: str) -> Path:

@@ -288,7 +288,9 @@ def test_export_replaces_files_atomically(tmp_path, monkeypatch):
     assert sorted(old) == ["ppo_x.json", "ppo_x.zip", "ppo_x_vecnormalize.json"]
     record = _fake_run(tmp_path / "run")
 
-    real_stage, calls = train_mod.stage_file, []
+    import pneunet_env.files as files_mod  # the one atomic writer stages every file
+
+    real_stage, calls = files_mod.stage_file, []
 
     def failing_stage(final, content):
         calls.append(final.name)
@@ -296,7 +298,7 @@ def test_export_replaces_files_atomically(tmp_path, monkeypatch):
             raise OSError("disk full")
         return real_stage(final, content)
 
-    monkeypatch.setattr(train_mod, "stage_file", failing_stage)
+    monkeypatch.setattr(files_mod, "stage_file", failing_stage)
     with pytest.raises(OSError, match="disk full"):
         export(tmp_path / "run", dest, record)
     assert calls[0] == "ppo_x.zip" and _snapshot(dest.parent) == old  # the staged model was removed too
@@ -309,7 +311,7 @@ def test_export_replaces_files_atomically(tmp_path, monkeypatch):
         done.append(dst)
         return real_replace(src, dst)
 
-    monkeypatch.setattr(train_mod, "stage_file", real_stage)
+    monkeypatch.setattr(files_mod, "stage_file", real_stage)
     monkeypatch.setattr(train_mod.os, "replace", failing_replace)
     with pytest.raises(OSError, match="replace failed"):
         export(tmp_path / "run", dest, record)
