@@ -279,7 +279,6 @@ def _snapshot(folder: Path) -> dict[str, bytes]:
 def test_export_replaces_files_atomically(tmp_path, monkeypatch):
     """``--export`` never leaves the user without statistics: every file is staged beside its destination, then
     renamed; a failure part-way leaves the previous export whole, and no temporary file behind."""
-    import agents.train_export as train_mod  # export's own module (agents.train re-exports it)
     from agents.policies import NormalizationStats
 
     dest = tmp_path / "models" / "ppo_x"
@@ -303,7 +302,7 @@ def test_export_replaces_files_atomically(tmp_path, monkeypatch):
         export(tmp_path / "run", dest, record)
     assert calls[0] == "ppo_x.zip" and _snapshot(dest.parent) == old  # the staged model was removed too
 
-    real_replace, done = train_mod.os.replace, []
+    real_replace, done = files_mod.os.replace, []
 
     def failing_replace(src, dst):
         if done:
@@ -312,13 +311,13 @@ def test_export_replaces_files_atomically(tmp_path, monkeypatch):
         return real_replace(src, dst)
 
     monkeypatch.setattr(files_mod, "stage_file", real_stage)
-    monkeypatch.setattr(train_mod.os, "replace", failing_replace)
+    monkeypatch.setattr(files_mod.os, "replace", failing_replace)
     with pytest.raises(OSError, match="replace failed"):
         export(tmp_path / "run", dest, record)
     after = _snapshot(dest.parent)
     assert sorted(after) == sorted(old)  # nothing deleted, no temporary file left
     assert after["ppo_x_vecnormalize.json"] == old["ppo_x_vecnormalize.json"]
-    monkeypatch.setattr(train_mod.os, "replace", real_replace)
+    monkeypatch.setattr(files_mod.os, "replace", real_replace)
 
     dest.with_suffix(".json").chmod(0o640)
     export(tmp_path / "run", dest, record)
