@@ -40,7 +40,7 @@ from pneunet_env.physics.solver import (
     Continuation,
     Equilibrium,
     _evaluate,
-    step_state_from,
+    _follow_from,
     sym2_eigvals,
 )
 from pneunet_env.task import TaskState, Touch
@@ -151,7 +151,7 @@ def _make_loop(stamp: int, variant: int):
                 r = Continuation(k_in[i], s_in[i], ev0.energy, gn0, lmin0, 0, 0, False, STATUS_CONVERGED,
                                  ev0.volume_change, 0, 0, ev0)
             else:
-                r = step_state_from(k_in[i], s_in[i], p_in[i], p, prm, kobj[i], ko[i], opts, ev0)
+                r = _follow_from(k_in[i], s_in[i], p_in[i], p, prm, kobj[i], ko[i], opts, ev0)
             delta, force, touch = _contact(r.kappa, kobj[i], ko[i])
             conv = r.status >= 0 and r.status <= 1
             o_p[i] = p

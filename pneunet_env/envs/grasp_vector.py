@@ -419,11 +419,14 @@ class PneuNetGraspVectorEnv(VectorEnv):
         self._build_backend()
 
     # ---- the re-entrancy guard ------------------------------------------------------------------------------
-    def _enter(self, what: str) -> None:
-        if not self._busy.acquire(blocking=False):
+    def _enter(self, what: str) -> threading.Lock:
+        """The guard's lock, for a ``with`` (its C ``__enter__`` takes it and arms the release at once: a Ctrl-C
+        raised anywhere in the step cannot leave it held); a ``RuntimeError`` if a step or reset already runs."""
+        if self._busy.locked():
             raise RuntimeError(f"{type(self).__name__}.{what}() called while another step() or reset() of the same "
                                f"env is running (from another thread, or re-entered): a vector env is stepped by one "
                                f"thread at a time")
+        return self._busy
 
     # ---- state, for users ------------------------------------------------------------------------------
     @property
@@ -468,11 +471,8 @@ class PneuNetGraspVectorEnv(VectorEnv):
     def reset(self, *, seed: int | Sequence[int | None] | None = None, options: dict[str, Any] | None = None):
         """Reset all sub-envs (or those of ``options["reset_mask"]``, which must reset at least one, as Gymnasium's
         vector envs require); see the class docstring for seeds. One thread at a time (``RuntimeError`` otherwise)."""
-        self._enter("reset")
-        try:
+        with self._enter("reset"):
             return self._reset(seed, options)
-        finally:
-            self._busy.release()
 
     def _reset(self, seed, options):
         n = self.num_envs
@@ -600,11 +600,8 @@ class PneuNetGraspVectorEnv(VectorEnv):
         """One step of every sub-env; see the class docstring. On the torch backend a tensor action that requires
         grad is detached (the env is not differentiable: keeping its graph would grow the memory every step).
         One thread at a time: a ``step`` or ``reset`` that overlaps another raises ``RuntimeError``."""
-        self._enter("step")
-        try:
+        with self._enter("step"):
             return self._step(actions)
-        finally:
-            self._busy.release()
 
     def _step(self, actions):
         if self._state is None:

@@ -44,8 +44,8 @@ from pneunet_env.physics.solver import (
     Equilibrium,
     Solve,
     SolverOptions,
+    _follow_ev,
     params_tuple,
-    step_state,
 )
 from pneunet_env.physics.xp import NUMPY, Ops, copy, is_torch, to_host, torch_ops
 
@@ -322,7 +322,7 @@ def _make_loop(stamp: int, variant: int):
         o_backtracks = out.backtracks
         for i in numba.prange(k.shape[0]):
             if active[i]:
-                r = step_state(k[i], s[i], p0[i], p1[i], prm, kobj[i], ko[i], opts)
+                r = _follow_ev(k[i], s[i], p0[i], p1[i], prm, kobj[i], ko[i], opts)  # step_state, compiled
                 o_kappa[i] = r.kappa
                 o_side_strain[i] = r.side_strain
                 o_energy[i] = r.energy

@@ -37,7 +37,7 @@ from pneunet_env.physics import mechanics
 from pneunet_env.physics.contact import scalar_contact
 from pneunet_env.physics.params import ActuatorParams, check_object
 from pneunet_env.physics.solver import STATUS_CONVERGED, Equilibrium, check_pressure, params_tuple
-from pneunet_env.physics.solver import _evaluate as _kernel  # the compiled energy kernel (numba when installed)
+from pneunet_env.physics.solver import evaluate_state as _kernel  # the energy kernel (compiled when numba is there)
 
 __all__ = [
     "LinearModel",

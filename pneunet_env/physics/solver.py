@@ -29,7 +29,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from pneunet_env.physics import mechanics
-from pneunet_env.physics._jit import njit
+from pneunet_env.physics._jit import njit, python_entry
 from pneunet_env.physics.contact import scalar_contact
 from pneunet_env.physics.mechanics import Evaluation
 from pneunet_env.physics.params import ActuatorParams, check_finite, check_object
@@ -55,6 +55,8 @@ __all__ = [
     "sym2_eigvals",
     "sym2_eigvec",
     "step_state",
+    "step_state_from",
+    "evaluate_state",
     "params_tuple",
     "check_pressure",
     "ACCEPT_GTOL",
@@ -519,10 +521,17 @@ def _make_parts(terms, jit=njit):
     return evaluate, minimise, follow_ev, follow_from
 
 
-_evaluate, _minimise, _follow_ev, step_state_from = _make_parts(mechanics.make_terms(
+_evaluate, _minimise, _follow_ev, _follow_from = _make_parts(mechanics.make_terms(
     math.log, math.tan, njit(scalar_where), njit(scalar_max), abs, jit=njit
 )[1])
-step_state = _follow_ev
+# Compiled code (the batched and fused loops) calls the four above; Python calls their entries below, which return the
+# same records built in Python from plain tuples (python_entry: a NamedTuple returned to Python can turn a Ctrl-C
+# into a segmentation fault).
+step_state = python_entry(_follow_ev, Solve)
+step_state_from = python_entry(_follow_from, Continuation, {"evaluation": Evaluation})
+evaluate_state = python_entry(_evaluate, Evaluation)
+"""``evaluate_state(kappa~, e_s, p, prm, k~_obj, w kappa_obj) -> Evaluation``: the energy kernel, from Python."""
+_minimise_entry = python_entry(_minimise, Minimum)
 # step_state_from(kappa~, e_s, p0, p1, prm, k~_obj, w kappa_obj, opts, ev0) -> Continuation: step_state from a start
 # whose energy evaluation ev0 (the kernel's Evaluation at (kappa~, e_s, p0)) is known; returns step_state's fields and
 # the evaluation at the answer, so that a caller can keep it for the next step (pneunet_env.fused caches it).
@@ -640,8 +649,8 @@ def minimise_state(x0, pressure, params, object_stiffness=0.0, object_curvature=
     Returns a :class:`Minimum` ``(kappa~, e_s, U, |grad|, lam_min, iterations, status)``.
     """
     o = options
-    return _minimise(float(x0[0]), float(x0[1]), float(pressure), params_tuple(params), float(object_stiffness),
-                     float(object_curvature), o.gtol, o.max_iter, o.eig_floor)
+    return _minimise_entry(float(x0[0]), float(x0[1]), float(pressure), params_tuple(params),
+                           float(object_stiffness), float(object_curvature), o.gtol, o.max_iter, o.eig_floor)
 
 
 def solve_equilibrium(
@@ -687,16 +696,16 @@ def solve_equilibrium(
             raise ValueError(
                 f"initial must be None, an Equilibrium or a (curvature, side_strain) pair, got {initial!r}"
             ) from None
-        if not _evaluate(x0[0], x0[1], 0.0, prm, 0.0, 1.0).ok:
+        if not evaluate_state(x0[0], x0[1], 0.0, prm, 0.0, 1.0).ok:
             raise ValueError(f"initial state (curvature={x0[0]!r}, side_strain={x0[1]!r}) is outside the domain")
         if initial_pressure is not None:
             p0 = check_pressure(initial_pressure, "initial_pressure")
             out = step_state(x0[0], x0[1], p0, p, prm, kobj, kc, opts)
         else:
             o = options
-            r = _minimise(x0[0], x0[1], p, prm, kobj, kc, o.gtol, o.max_iter, o.eig_floor)
+            r = _minimise_entry(x0[0], x0[1], p, prm, kobj, kc, o.gtol, o.max_iter, o.eig_floor)
             snapped = max(abs(r.kappa - x0[0]), abs(r.side_strain - x0[1])) > o.max_jump
-            dv = _evaluate(r.kappa, r.side_strain, p, prm, kobj, kc).volume_change
+            dv = evaluate_state(r.kappa, r.side_strain, p, prm, kobj, kc).volume_change
             out = Solve(r.kappa, r.side_strain, r.energy, r.gradient_norm, r.min_eigenvalue, r.iterations, 0, snapped,
                         r.status, dv, r.evaluations + 1, r.backtracks)
     return equilibrium(p, out, prm.chamber_height, kobj, kc)
