@@ -8,12 +8,13 @@ to force the pure-Python path.
 
 from __future__ import annotations
 
-import inspect
+import hashlib
 import os
 from collections.abc import Callable, Mapping
+from pathlib import Path
 from typing import Any
 
-__all__ = ["HAVE_NUMBA", "njit", "python_entry"]
+__all__ = ["HAVE_NUMBA", "njit", "njit_cached", "python_entry", "source_stamp"]
 
 HAVE_NUMBA = False
 if not os.environ.get("PNEUNET_DISABLE_NUMBA"):
@@ -32,29 +33,41 @@ def njit(fn):
     return fn
 
 
-def python_entry(fn: Callable, record: type, nested: Mapping[str, type] | None = None) -> Callable:
-    """``fn`` (compiled, returning the NamedTuple ``record``) as Python should call it: a twin compiled to return a
-    plain tuple of numbers, from which Python builds the same ``record`` (``nested`` names the fields that are
-    records themselves, with their types). Compiled callers keep calling ``fn``; without numba this is ``fn``.
+def source_stamp(modules) -> int | None:
+    """A hash of the sources of ``modules`` (numba's disk cache only watches a function's own file); ``None`` if they
+    cannot be read (then nothing built on it is cached)."""
+    h = hashlib.sha256()
+    try:
+        for module in modules:
+            h.update(Path(module.__file__).read_bytes())
+    except (OSError, TypeError):
+        return None
+    return int(h.hexdigest()[:15], 16)
+
+
+def njit_cached(make: Callable[[int], Callable], modules, **options: Any) -> Callable:
+    """``numba.njit(make(stamp), cache=True, nogil=True, **options)``, ``stamp`` being :func:`source_stamp` of
+    ``modules``: compiled once and loaded from numba's disk cache in later processes, recompiled after an edit of any
+    of those sources. ``make`` builds the function with ``stamp`` as a closure variable that the function reads (it
+    is part of the cache's key). The solver's own closures cannot be cached (numba keys them by their pickled
+    closure, which differs in every process); a cached function that calls them carries their code, compiled in.
+    Without numba: ``make(0)``, plain Python."""
+    if not HAVE_NUMBA:
+        return make(0)
+    stamp = source_stamp(modules)
+    return _numba.njit(make(stamp or 0), nogil=True, cache=stamp is not None, **options)
+
+
+def python_entry(plain: Callable, record: type, nested: Mapping[str, type] | None = None) -> Callable:
+    """A compiled function that returns a record's fields as a plain tuple of numbers (``nested``: the fields that
+    are records themselves, by name, with their types), as Python calls it: the same call, returning the
+    ``record``, built in Python.
 
     Why: numba turns a returned NamedTuple into a Python object by running Python code (it unpickles the class), and
     a signal that came during the compiled call is handled there, first. A Ctrl-C's ``KeyboardInterrupt`` raised
     at that moment makes numba call NULL: a segmentation fault instead of the interrupt (numba 0.68; numba issue
     #2324). A tuple of numbers is built by C alone, so the interrupt is raised after the call returns, as usual.
     """
-    if not HAVE_NUMBA:
-        return fn
-    nested = dict(nested or {})
-    names = list(inspect.signature(fn.py_func).parameters)
-
-    def fields(expr: str, rec: type) -> str:
-        parts = [fields(f"{expr}.{f}", nested[f]) if f in nested else f"{expr}.{f}" for f in rec._fields]
-        return "(" + ", ".join(parts) + ",)"
-
-    args = ", ".join(names)
-    namespace: dict[str, Any] = {"fn": fn}
-    exec(f"def plain({args}):\n    r = fn({args})\n    return {fields('r', record)}\n", namespace)  # noqa: S102
-    plain = _numba.njit(namespace["plain"], cache=False, fastmath=False, nogil=True)
     make = record._make
     if not nested:
         def entry(*a):
@@ -67,7 +80,7 @@ def python_entry(fn: Callable, record: type, nested: Mapping[str, type] | None =
             for i, build in where:
                 t[i] = build(t[i])
             return make(t)
-    entry.__name__ = entry.__qualname__ = getattr(fn, "__name__", "entry")
-    entry.__doc__ = fn.__doc__
-    entry.compiled = fn  # the compiled function itself, for compiled callers
+    entry.__name__ = entry.__qualname__ = getattr(plain, "__name__", "entry")
+    entry.__doc__ = plain.__doc__
+    entry.plain = plain  # the compiled function itself
     return entry

@@ -22,18 +22,16 @@ All quantities are dimensionless (lengths / ``w``, stresses and pressure / ``mu`
 
 from __future__ import annotations
 
-import hashlib
 import math
 import os
 import sys
 import threading
-from pathlib import Path
 
 import numpy as np
 
 from pneunet_env.physics import _jit, contact, masked, mechanics, xp
 from pneunet_env.physics import solver as _solver
-from pneunet_env.physics._jit import HAVE_NUMBA
+from pneunet_env.physics._jit import HAVE_NUMBA, njit_cached
 from pneunet_env.physics.params import ActuatorParams
 from pneunet_env.physics.solver import (
     DEFAULT_OPTIONS,
@@ -275,27 +273,13 @@ def threads_for(n: int) -> int:
 def _max_threads() -> int:
     return numba.config.NUMBA_NUM_THREADS if HAVE_NUMBA else 1
 
-def _source_stamp(modules) -> int | None:
-    """A hash of the sources a compiled loop is built from (numba's cache only watches the loop's own file); None if
-    they cannot be read (then the loop is not cached)."""
-    h = hashlib.sha256()
-    try:
-        for module in modules:
-            h.update(Path(module.__file__).read_bytes())
-    except (OSError, TypeError):
-        return None
-    return int(h.hexdigest()[:15], 16)
-
-
 def compile_loops(make_loop, modules) -> tuple:
     """The serial and the parallel loop of ``make_loop(stamp, variant)`` compiled by numba (for :func:`run_loop`),
     cached on disk under a hash of the sources of ``modules``: compiling a parallel loop takes seconds, and an edit
     of any of those sources recompiles it instead of loading a stale one. (The scalar solver's closures themselves
     are not cacheable: numba keys them by their pickled closure, which differs in every process.)"""
-    stamp = _source_stamp(modules)
-    cache = stamp is not None
-    return (numba.njit(make_loop(stamp or 0, 0), nogil=True, cache=cache),
-            numba.njit(make_loop(stamp or 0, 1), nogil=True, parallel=True, cache=cache))
+    return (njit_cached(lambda stamp: make_loop(stamp, 0), modules),
+            njit_cached(lambda stamp: make_loop(stamp, 1), modules, parallel=True))
 
 
 def _make_loop(stamp: int, variant: int):

@@ -23,12 +23,13 @@ of :data:`pneunet_env.physics.mechanics.scalar_terms`; with numba installed they
 from __future__ import annotations
 
 import math
+import sys
 from dataclasses import dataclass
 from typing import Any, NamedTuple
 
 import numpy as np
 
-from pneunet_env.physics import mechanics
+from pneunet_env.physics import _jit, contact, mechanics, xp
 from pneunet_env.physics._jit import njit, python_entry
 from pneunet_env.physics.contact import scalar_contact
 from pneunet_env.physics.mechanics import Evaluation
@@ -524,14 +525,60 @@ def _make_parts(terms, jit=njit):
 _evaluate, _minimise, _follow_ev, _follow_from = _make_parts(mechanics.make_terms(
     math.log, math.tan, njit(scalar_where), njit(scalar_max), abs, jit=njit
 )[1])
-# Compiled code (the batched and fused loops) calls the four above; Python calls their entries below, which return the
-# same records built in Python from plain tuples (python_entry: a NamedTuple returned to Python can turn a Ctrl-C
-# into a segmentation fault).
-step_state = python_entry(_follow_ev, Solve)
-step_state_from = python_entry(_follow_from, Continuation, {"evaluation": Evaluation})
-evaluate_state = python_entry(_evaluate, Evaluation)
+# Compiled code (the batched and fused loops) calls the four above. Python calls the entries below: compiled once
+# and cached on disk (a new process loads them instead of compiling the solver for seconds), they return the same
+# records as plain tuples, which Python turns back into records (python_entry: a NamedTuple returned to Python can
+# turn a Ctrl-C into a segmentation fault).
+
+
+def _make_entries(stamp: int):
+    def plain_step_state(k, s, p0, p1, prm, kobj, ko, opts):
+        if stamp < 0:  # the stamp keys the disk cache (see _jit.njit_cached)
+            raise AssertionError
+        r = _follow_ev(k, s, p0, p1, prm, kobj, ko, opts)
+        return (r.kappa, r.side_strain, r.energy, r.gradient_norm, r.min_eigenvalue, r.iterations, r.substeps,
+                r.snapped, r.status, r.volume_change, r.evaluations, r.backtracks)
+
+    def plain_evaluate(k, s, p, prm, kobj, ko):
+        if stamp < 0:
+            raise AssertionError
+        e = _evaluate(k, s, p, prm, kobj, ko)
+        return (e.ok, e.energy, e.g_kappa, e.g_strain, e.h_kk, e.h_ks, e.h_ss, e.volume_change, e.v_kappa, e.v_strain)
+
+    def plain_step_state_from(k, s, p0, p1, prm, kobj, ko, opts, ev0):
+        if stamp < 0:
+            raise AssertionError
+        r = _follow_from(k, s, p0, p1, prm, kobj, ko, opts, ev0)
+        e = r.evaluation
+        return (r.kappa, r.side_strain, r.energy, r.gradient_norm, r.min_eigenvalue, r.iterations, r.substeps,
+                r.snapped, r.status, r.volume_change, r.evaluations, r.backtracks,
+                (e.ok, e.energy, e.g_kappa, e.g_strain, e.h_kk, e.h_ks, e.h_ss, e.volume_change, e.v_kappa,
+                 e.v_strain))
+
+    def plain_minimise(k, s, p, prm, kobj, ko, gtol, max_iter, eig_floor):
+        if stamp < 0:
+            raise AssertionError
+        r = _minimise(k, s, p, prm, kobj, ko, gtol, max_iter, eig_floor)
+        return (r.kappa, r.side_strain, r.energy, r.gradient_norm, r.min_eigenvalue, r.iterations, r.status,
+                r.evaluations, r.backtracks)
+
+    return {"step_state": plain_step_state, "evaluate": plain_evaluate, "step_state_from": plain_step_state_from,
+            "minimise": plain_minimise}
+
+
+_SOURCES = (mechanics, contact, xp, _jit, sys.modules[__name__])
+"""The sources the compiled solver is built from."""
+
+
+def _entry(name: str, record: type, nested=None):
+    return python_entry(_jit.njit_cached(lambda stamp: _make_entries(stamp)[name], _SOURCES), record, nested)
+
+
+step_state = _entry("step_state", Solve)
+step_state_from = _entry("step_state_from", Continuation, {"evaluation": Evaluation})
+evaluate_state = _entry("evaluate", Evaluation)
 """``evaluate_state(kappa~, e_s, p, prm, k~_obj, w kappa_obj) -> Evaluation``: the energy kernel, from Python."""
-_minimise_entry = python_entry(_minimise, Minimum)
+_minimise_entry = _entry("minimise", Minimum)
 # step_state_from(kappa~, e_s, p0, p1, prm, k~_obj, w kappa_obj, opts, ev0) -> Continuation: step_state from a start
 # whose energy evaluation ev0 (the kernel's Evaluation at (kappa~, e_s, p0)) is known; returns step_state's fields and
 # the evaluation at the answer, so that a caller can keep it for the next step (pneunet_env.fused caches it).

@@ -50,6 +50,21 @@ def test_the_compiled_solver_returns_records():
 
 
 @pytest.mark.skipif(not HAVE_NUMBA, reason="needs numba")
+def test_the_python_entries_return_the_compiled_records_field_for_field():
+    """The entries Python calls (plain tuples across the boundary, records rebuilt in Python: see
+    ``_jit.python_entry``) give exactly the records the compiled functions build, every field in its place."""
+    prm, opts = params_tuple(None), DEFAULT_OPTIONS.as_tuple()
+    for k, s, p0, p1, kobj in [(0.0, 0.0, 0.0, 0.5, 1e-4), (0.3, 0.01, 0.5, 0.9, 0.0), (0.2, 0.0, 0.4, 0.1, 1e-2)]:
+        assert step_state(k, s, p0, p1, prm, kobj, 0.02, opts) == solver._follow_ev(k, s, p0, p1, prm, kobj, 0.02, opts)
+        ev0 = solver._evaluate(k, s, p0, prm, kobj, 0.02)
+        assert solver.evaluate_state(k, s, p0, prm, kobj, 0.02) == ev0
+        r = solver.step_state_from(k, s, p0, p1, prm, kobj, 0.02, opts, ev0)
+        assert r == solver._follow_from(k, s, p0, p1, prm, kobj, 0.02, opts, ev0) and type(r.evaluation) is Evaluation
+        m = solver._minimise_entry(k, s, p1, prm, kobj, 0.02, opts[0], opts[1], opts[6])
+        assert m == solver._minimise(k, s, p1, prm, kobj, 0.02, opts[0], opts[1], opts[6]) and type(m) is Minimum
+
+
+@pytest.mark.skipif(not HAVE_NUMBA, reason="needs numba")
 def test_the_compiled_rules_take_and_return_records():
     from pneunet_env import fused
 
