@@ -31,6 +31,7 @@ from typing import Any, NamedTuple
 import numpy as np
 
 from pneunet_env import task, task_objects
+from pneunet_env.actions import check_action
 from pneunet_env.physics import _jit, batched, contact, mechanics, xp
 from pneunet_env.physics import solver as _solver
 from pneunet_env.physics._jit import HAVE_NUMBA
@@ -46,7 +47,7 @@ from pneunet_env.physics.solver import (
 from pneunet_env.task import TaskState, Touch
 from pneunet_env.task_objects import Thresholds
 
-__all__ = ["HAVE_FUSED", "fused_step", "Outputs", "new_cache"]
+__all__ = ["HAVE_FUSED", "fused_step", "Outputs", "new_cache", "SingleStep", "STATE_SIZE"]
 
 HAVE_FUSED = HAVE_NUMBA
 """Whether the fused step is available (it needs numba)."""
@@ -66,6 +67,55 @@ class Outputs(NamedTuple):
 def _flag_value(flag):
     """A flag as the reward's number (1.0 or 0.0, what numpy's ``float * bool`` uses)."""
     return 1.0 if flag else 0.0
+
+
+def _env_step(a, command, k_in, s_in, p_in, force_in, delta_in, touch_in, dv_in, kobj, ko, failure, crush, grip,
+              task_state, tp, volume_scale, prm, opts, c, valid):
+    """One env's step on numbers (the loop's body, and the single env's compiled step): ``c`` is the env's row of the
+    evaluation cache (updated in place), ``valid`` whether it holds the start's evaluation. Returns ``(clipped,
+    solve, failed, valid, command, outcome, obs0, obs1)``: the step's :class:`Equilibrium` (even where it failed),
+    the command kept, the rules' :class:`~pneunet_env.task.Outcome`, the observation's entries (``obs1``: the volume
+    entry, where ``volume_scale > 0``)."""
+    clipped = a < -1.0 or a > 1.0
+    a = min(max(a, -1.0), 1.0)
+    p = min(max(command + a * tp.pressure_step, 0.0), tp.pressure_max)
+    n_start = 0  # the start's evaluation: cached, or made here
+    if valid:  # the evaluation at (k, s, p_eq) that the last step ended on
+        ev0 = Evaluation(c[0] != 0.0, c[1], c[2], c[3], c[4], c[5], c[6], c[7], c[8], c[9])
+    else:
+        ev0 = _evaluate(k_in, s_in, p_in, prm, kobj, ko)
+        n_start = 1
+    # Where the pressure did not change and the start is a converged minimum (the descent's own test, on its own
+    # numbers), the continuation would return the start unchanged with no work: skip the call.
+    skip = False
+    if p == p_in and ev0.ok:
+        gn0 = math.hypot(ev0.g_kappa, ev0.g_strain)
+        lmin0 = sym2_eigvals(ev0.h_kk, ev0.h_ks, ev0.h_ss)[0]
+        skip = gn0 <= opts[0] and lmin0 > 0.0  # opts[0]: the gradient tolerance (SolverOptions.as_tuple())
+    if skip:
+        r = Continuation(k_in, s_in, ev0.energy, gn0, lmin0, 0, 0, False, STATUS_CONVERGED, ev0.volume_change, 0, 0,
+                         ev0)
+    else:
+        r = _follow_from(k_in, s_in, p_in, p, prm, kobj, ko, opts, ev0)
+    delta, force, touch = _contact(r.kappa, kobj, ko)
+    conv = r.status >= 0 and r.status <= 1
+    solve = Equilibrium(p, r.kappa, r.side_strain, prm.chamber_height * (1.0 + r.side_strain) * r.kappa, force, delta,
+                        touch, r.volume_change, r.energy, r.gradient_norm, r.min_eigenvalue, conv, r.iterations,
+                        r.substeps, r.snapped, r.status, kobj, ko, n_start + r.evaluations, r.backtracks)
+    failed = not conv
+    if not failed:  # the new state's evaluation, for the next step (a failed step keeps the state and its own)
+        ev = r.evaluation
+        c[0] = 1.0 if ev.ok else 0.0
+        c[1], c[2], c[3], c[4], c[5] = ev.energy, ev.g_kappa, ev.g_strain, ev.h_kk, ev.h_ks
+        c[6], c[7], c[8], c[9] = ev.h_ss, ev.volume_change, ev.v_kappa, ev.v_strain
+        valid = True
+    if failed:  # the previous state (and command) is kept
+        p, force, delta, touch, dv = command, force_in, delta_in, touch_in, dv_in
+    else:
+        dv = r.volume_change
+    o = _rules(task_state, Touch(force, delta, touch), Thresholds(failure, crush, grip), failed, tp)
+    obs1 = dv / volume_scale if volume_scale > 0.0 else 0.0
+    return clipped, solve, failed, valid, p, o, p / tp.pressure_max, obs1
 
 
 def _make_loop(stamp: int, variant: int):
@@ -127,66 +177,33 @@ def _make_loop(stamp: int, variant: int):
         o_failed = out.failed
         o_clipped = out.clipped
         o_obs = out.obs
-        gtol = opts[0]  # SolverOptions.as_tuple(): the gradient tolerance first
         for i in numba.prange(action.shape[0]):
-            a = action[i]
-            o_clipped[i] = a < -1.0 or a > 1.0
-            a = min(max(a, -1.0), 1.0)
-            p = min(max(command[i] + a * tp.pressure_step, 0.0), tp.pressure_max)
-            c = ev_cache[i]  # the row of the evaluation cache: the kernel's Evaluation, the flag as 0/1
-            n_start = 0  # the start's evaluation: cached, or made here
-            if ev_valid[i]:  # the evaluation at (k, s, p_eq) that the last step ended on
-                ev0 = Evaluation(c[0] != 0.0, c[1], c[2], c[3], c[4], c[5], c[6], c[7], c[8], c[9])
-            else:
-                ev0 = _evaluate(k_in[i], s_in[i], p_in[i], prm, kobj[i], ko[i])
-                n_start = 1
-            # Where the pressure did not change and the start is a converged minimum (the descent's own test, on
-            # its own numbers), the continuation would return the start unchanged with no work: skip the call.
-            skip = False
-            if p == p_in[i] and ev0.ok:
-                gn0 = math.hypot(ev0.g_kappa, ev0.g_strain)
-                lmin0 = sym2_eigvals(ev0.h_kk, ev0.h_ks, ev0.h_ss)[0]
-                skip = gn0 <= gtol and lmin0 > 0.0
-            if skip:
-                r = Continuation(k_in[i], s_in[i], ev0.energy, gn0, lmin0, 0, 0, False, STATUS_CONVERGED,
-                                 ev0.volume_change, 0, 0, ev0)
-            else:
-                r = _follow_from(k_in[i], s_in[i], p_in[i], p, prm, kobj[i], ko[i], opts, ev0)
-            delta, force, touch = _contact(r.kappa, kobj[i], ko[i])
-            conv = r.status >= 0 and r.status <= 1
-            o_p[i] = p
-            o_k[i] = r.kappa
-            o_s[i] = r.side_strain
-            o_top[i] = prm.chamber_height * (1.0 + r.side_strain) * r.kappa
-            o_force[i] = force
-            o_delta[i] = delta
-            o_touch[i] = touch
-            o_dv[i] = r.volume_change
-            o_energy[i] = r.energy
-            o_gn[i] = r.gradient_norm
-            o_lmin[i] = r.min_eigenvalue
-            o_conv[i] = conv
-            o_it[i] = r.iterations
-            o_sub[i] = r.substeps
-            o_snap[i] = r.snapped
-            o_status[i] = r.status
-            o_evals[i] = n_start + r.evaluations
-            o_backs[i] = r.backtracks
-            failed = not conv
+            clipped, e, failed, valid, p, o, obs0, obs1 = _env_step(
+                action[i], command[i], k_in[i], s_in[i], p_in[i], force_in[i], delta_in[i], touch_in[i], dv_in[i],
+                kobj[i], ko[i], failure[i], crush[i], grip[i], TaskState(step0[i], damaged0[i], dropped0[i], peak0[i]),
+                tp, volume_scale, prm, opts, ev_cache[i], ev_valid[i])
+            o_clipped[i] = clipped
+            o_p[i] = e.pressure
+            o_k[i] = e.curvature
+            o_s[i] = e.side_strain
+            o_top[i] = e.top_strain
+            o_force[i] = e.contact_force
+            o_delta[i] = e.indentation
+            o_touch[i] = e.in_contact
+            o_dv[i] = e.volume_change
+            o_energy[i] = e.energy
+            o_gn[i] = e.gradient_norm
+            o_lmin[i] = e.min_eigenvalue
+            o_conv[i] = e.converged
+            o_it[i] = e.iterations
+            o_sub[i] = e.substeps
+            o_snap[i] = e.snapped
+            o_status[i] = e.status
+            o_evals[i] = e.evaluations
+            o_backs[i] = e.backtracks
             o_failed[i] = failed
-            if not failed:  # the new state's evaluation, for the next step (a failed step keeps the state and its own)
-                ev = r.evaluation
-                c[0] = 1.0 if ev.ok else 0.0
-                c[1], c[2], c[3], c[4], c[5] = ev.energy, ev.g_kappa, ev.g_strain, ev.h_kk, ev.h_ks
-                c[6], c[7], c[8], c[9] = ev.h_ss, ev.volume_change, ev.v_kappa, ev.v_strain
-                ev_valid[i] = True
-            if failed:  # the previous state (and command) is kept
-                p, force, delta, touch, dv = command[i], force_in[i], delta_in[i], touch_in[i], dv_in[i]
-            else:
-                dv = r.volume_change
+            ev_valid[i] = valid
             o_command[i] = p
-            o = _rules(TaskState(step0[i], damaged0[i], dropped0[i], peak0[i]), Touch(force, delta, touch),
-                       Thresholds(failure[i], crush[i], grip[i]), failed, tp)
             o_step[i] = o.state.step
             o_damaged[i] = o.state.damaged
             o_dropped[i] = o.state.dropped
@@ -202,20 +219,23 @@ def _make_loop(stamp: int, variant: int):
             o_truncated[i] = o.truncated
             o_success[i] = o.success
             o_reward[i] = o.reward
-            o_obs[i, 0] = p / tp.pressure_max
+            o_obs[i, 0] = obs0
             if volume_scale > 0.0:
-                o_obs[i, 1] = dv / volume_scale
+                o_obs[i, 1] = obs1
 
     return _loop
 
+
+_SOURCES = (mechanics, contact, _solver, _jit, xp, task, task_objects, sys.modules[__name__])
+"""The sources the compiled steps are built from (they key numba's disk cache: see ``_jit.njit_cached``)."""
 
 if HAVE_NUMBA:
     import numba
 
     _contact = contact.make_contact(_jit.njit(xp.scalar_max), _jit.njit(xp.scalar_where), jit=_jit.njit)[1]
     _rules = task.make_rules(_jit.njit(_flag_value), _jit.njit(xp.scalar_max), jit=_jit.njit)
-    _loop_serial, _loop_parallel = batched.compile_loops(
-        _make_loop, (mechanics, contact, _solver, _jit, xp, task, task_objects, sys.modules[__name__]))
+    _env_step = _jit.njit(_env_step)
+    _loop_serial, _loop_parallel = batched.compile_loops(_make_loop, _SOURCES)
 
 
 EV_FIELDS = len(Evaluation._fields)
@@ -279,3 +299,118 @@ def fused_step(state: task.EnvState, action: np.ndarray, params: task.EnvParams,
     new = task.EnvState(out.command, new_eq, obj, state.thresholds, outcome.state)
     return task.Step(new, out.obs, outcome.reward, outcome.terminated, outcome.truncated, solve, outcome,
                      out.clipped, out.failed)
+
+
+# ---------------------------------------------------------------------------------------------
+# The single env's step: one compiled call on the env's state as one float array
+# ---------------------------------------------------------------------------------------------
+
+_X_EQ, _X_THRESHOLDS, _X_TASK = 1, 21, 24
+STATE_SIZE = 28
+"""Floats of the single env's packed state: the command, the :class:`Equilibrium`'s 20 fields, the
+:class:`Thresholds`' 3, the :class:`TaskState`'s 4 (flags as 0/1)."""
+
+
+def _make_single(stamp: int, params_type: type = task.TaskParams):
+    def single(x, a, t, prm_t, opts, volume_scale, c, valid):
+        # x: the packed state (STATE_SIZE floats), updated in place; t, prm_t: the task's and the actuator's numbers as
+        # plain tuples (numba reads a NamedTuple argument through Python: microseconds a call); c, valid: the cache.
+        if stamp < 0:  # the stamp keys the disk cache (see _jit.njit_cached)
+            raise AssertionError
+        tp = params_type(*t)
+        prm = _solver.ActuatorNumbers(*prm_t)
+        clipped, e, failed, ok, p, o, obs0, obs1 = _env_step(
+            a, x[0], x[2], x[3], x[1], x[5], x[6], x[7] != 0.0, x[8], x[17], x[18], x[21], x[22], x[23],
+            TaskState(np.int64(x[24]), x[25] != 0.0, x[26] != 0.0, x[27]), tp, volume_scale, prm, opts, c, valid[0])
+        valid[0] = ok
+        x[0] = p
+        if not failed:  # the new equilibrium (a failed step keeps the previous one)
+            x[1], x[2], x[3], x[4], x[5] = e.pressure, e.curvature, e.side_strain, e.top_strain, e.contact_force
+            x[6], x[7], x[8], x[9] = e.indentation, 1.0 if e.in_contact else 0.0, e.volume_change, e.energy
+            x[10], x[11], x[12], x[13] = e.gradient_norm, e.min_eigenvalue, 1.0 if e.converged else 0.0, e.iterations
+            x[14], x[15], x[16] = e.substeps, 1.0 if e.snapped else 0.0, e.status
+            x[17], x[18], x[19], x[20] = e.object_stiffness, e.object_curvature, e.evaluations, e.backtracks
+        ts = o.state
+        x[24], x[25], x[26], x[27] = ts.step, 1.0 if ts.damaged else 0.0, 1.0 if ts.dropped else 0.0, ts.peak_force
+        # plain tuples of numbers (see _jit.python_entry), the records' fields in their order
+        return ((clipped, failed, p, obs0, obs1),
+                (e.pressure, e.curvature, e.side_strain, e.top_strain, e.contact_force, e.indentation, e.in_contact,
+                 e.volume_change, e.energy, e.gradient_norm, e.min_eigenvalue, e.converged, e.iterations, e.substeps,
+                 e.snapped, e.status, e.object_stiffness, e.object_curvature, e.evaluations, e.backtracks),
+                (ts.step, ts.damaged, ts.dropped, ts.peak_force),
+                (o.in_hold, o.overstressed, o.crushed, o.damage_event, o.slipping, o.drop_event, o.held, o.terminated,
+                 o.truncated, o.success, o.reward))
+
+    return single
+
+
+if HAVE_NUMBA:
+    _single = _jit.njit_cached(_make_single, _SOURCES)
+_SINGLES: dict[type, Any] = {}
+"""The compiled single step of a task section with more fields (:func:`pneunet_env.task.task_params_type`), by its
+params type: compiled when first used, not cached on disk."""
+
+
+def _single_for(params_type: type):
+    if params_type is task.TaskParams:
+        return _single
+    if params_type not in _SINGLES:
+        _SINGLES[params_type] = numba.njit(_make_single(0, params_type), nogil=True)
+    return _SINGLES[params_type]
+
+class SingleStep:
+    """:func:`pneunet_env.task.step` for one env with the pneu-net's contact, as one compiled call (numba): the same
+    :class:`~pneunet_env.task.Step`, bit for bit, built from the call's numbers (see the module for the work counters,
+    which the evaluation cache lowers). Keeps the env's state packed in one float array (and the cache) between calls;
+    a state it did not return itself (a reset's, or one set by hand) is packed anew, with the cache emptied."""
+
+    def __init__(self, params: task.EnvParams) -> None:
+        if not HAVE_FUSED:
+            raise RuntimeError("the compiled single step needs numba (pip install pneunet-env[fast])")
+        # numbers only, as plain tuples (the strings and the namespace, read at reset, become 0.0)
+        self._t = tuple(0.0 if v is None else v for v in _loop_params(params.task))
+        self._params_type = type(params.task)
+        self._call = _single_for(self._params_type)
+        self._prm = tuple(params.actuator)
+        self._opts = tuple(params.solver)
+        self._volume = params.volume_scale is not None
+        self._vs = float(params.volume_scale) if self._volume else 0.0
+        self._x = np.zeros(STATE_SIZE)
+        cache, self._valid = new_cache(1)
+        self._c = cache[0]
+        self._state: task.EnvState | None = None  # the state self._x holds
+
+    def __getstate__(self) -> dict[str, Any]:
+        """Pickled without the compiled function (found again by the params' type on unpickling)."""
+        state = self.__dict__.copy()
+        state["_call"] = state["_params_type"]
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        self._call = _single_for(self._params_type)
+
+    def _load(self, state: task.EnvState) -> None:
+        x = self._x
+        x[0] = state.command
+        x[_X_EQ:_X_THRESHOLDS] = [float(v) for v in state.eq]
+        x[_X_THRESHOLDS:_X_TASK] = [float(v) for v in state.thresholds]
+        x[_X_TASK:] = [float(v) for v in state.task]
+        self._valid[0] = False
+        self._state = state
+
+    def __call__(self, state: task.EnvState, action: float) -> task.Step:
+        """One step from ``state`` with ``action`` (a float; NaN and inf raise ``ValueError``, as
+        :func:`~pneunet_env.task.update_pressure` does)."""
+        if state is not self._state:
+            self._load(state)
+        a = check_action(action)
+        (clipped, failed, command, obs0, obs1), solve, ts, flags = self._call(
+            self._x, a, self._t, self._prm, self._opts, self._vs, self._c, self._valid)
+        solve = Equilibrium._make(solve)
+        ts = TaskState._make(ts)
+        outcome = task.Outcome(ts, *flags)
+        obs = np.array((obs0, obs1) if self._volume else (obs0,), np.float32)
+        self._state = new = task.EnvState(command, state.eq if failed else solve, state.obj, state.thresholds, ts)
+        return task.Step(new, obs, outcome.reward, outcome.terminated, outcome.truncated, solve, outcome, clipped,
+                         failed)

@@ -137,3 +137,57 @@ def test_an_unchanged_pressure_skips_the_solve_only_at_a_converged_minimum():
     got = fused_step(nudged, zero, params, cache=new_cache(n))
     _assert_steps_equal(ref, got)
     assert np.mean(ref.solve.iterations > 0) > 0.5
+
+
+COUNTERS = ("evaluations", "iterations", "substeps", "backtracks")
+"""The solve's work counters: the compiled steps start from the cached evaluation (and skip a solve at an unchanged
+pressure from a converged minimum), so these differ; every other number is the same."""
+
+
+def _kind(v):
+    return float if type(v) in (float, np.float64) else type(v)
+
+
+@pytest.mark.parametrize("overrides", [{}, {"observe_volume": True},
+                                       {"max_substeps": 3, "max_pressure_step_kpa": 20.0}])
+def test_the_single_envs_compiled_step_is_task_step(overrides):
+    """``SingleStep`` (the single env's step as one compiled call) against :func:`pneunet_env.task.step` with the
+    scalar Newton contact: the observation (values and dtype), reward, flags, the solve, the new state and the rules'
+    outcome, equal number for number and of the same kind, over random actions (clipped ones, zeros that hold the
+    pressure), with unconverged solves in the third case (a tiny sub-step budget)."""
+    from pneunet_env.config import load_config
+    from pneunet_env.fused import SingleStep
+
+    config = load_config(None, **overrides)
+    params = task.EnvParams.from_config(config)
+    rng = np.random.default_rng(1)
+    single = SingleStep(params)
+    failures = steps = 0
+    while steps < 300:
+        a_state = b_state = task.reset_state(task.sample_object(rng, config), params, task.newton_contact)
+        for _ in range(config.episode_steps):
+            a = float(rng.uniform(-1.3, 1.3)) if rng.random() < 0.7 else 0.0
+            ra, rb = task.step(a_state, a, params, task.newton_contact), single(b_state, a)
+            assert ra.obs.dtype == rb.obs.dtype and np.array_equal(ra.obs, rb.obs)
+            for name in ("reward", "terminated", "truncated", "action_clipped", "solver_failed", "outcome"):
+                assert getattr(ra, name) == getattr(rb, name), name
+            for rec_a, rec_b in [(ra.solve, rb.solve), (ra.state.eq, rb.state.eq), (ra.state.task, rb.state.task)]:
+                for f in rec_a._fields:
+                    va, vb = getattr(rec_a, f), getattr(rec_b, f)
+                    assert _kind(va) is _kind(vb) and (f in COUNTERS or va == vb), (f, va, vb)
+            assert ra.state.command == rb.state.command and ra.state.obj is rb.state.obj
+            failures += bool(ra.solver_failed)
+            steps += 1
+            a_state, b_state = ra.state, rb.state
+            if ra.terminated or ra.truncated:
+                break
+    assert (failures > 0) == ("max_substeps" in overrides)
+
+
+def test_the_single_env_steps_with_the_compiled_call():
+    env = gym.make("PneuNetGrasp-v0").unwrapped
+    assert env._single is not None
+    env.reset(seed=0)
+    for _ in range(3):
+        env.step(np.ones(1, np.float32))
+    assert env._single._state is env.state  # the packed state is the env's own: the compiled call made these steps

@@ -11,7 +11,11 @@ Re-recorded since, each time for a documented change only (issue 23, ``docs/perf
   ``["solver_backtracks"]``): entries added, every earlier entry unchanged bit for bit;
 * the energy kernel written with reciprocals and one ``tan``: states within 1.1e-15 (curvature 3.3e-16, side strain
   1.1e-15), energies 5.3e-15, gradient norms 1.5e-14 (all still below 1e-11); every reward, flag, count, status and
-  string unchanged.
+  string unchanged;
+* the single env's step as one compiled call (``pneunet_env.fused.SingleStep``, with the vector env's evaluation
+  cache): its work counters (one evaluation fewer a step, none where the pressure held at a converged minimum), and
+  the type of the peak force (``TaskState.peak_force``, ``info["peak_contact_force_kpa"]``), a Python float on every
+  step where it was an ``np.float64`` until the first contact; every number unchanged bit for bit.
 """
 
 from __future__ import annotations

@@ -392,8 +392,10 @@ def test_a_new_reward_term_is_a_config_field_and_a_line_in_rules(kind, monkeypat
     from pneunet_env.envs.grasp_vector import PneuNetGraspVectorEnv
 
     def make(cfg):
-        if kind == "single":
-            return gym.make("PneuNetGrasp-v0", config=cfg)
+        if kind == "single":  # task.step on Python scalars (the compiled single step: the slow test below)
+            env = gym.make("PneuNetGrasp-v0", config=cfg)
+            env.unwrapped._single = None
+            return env
         return PneuNetGraspVectorEnv(3, config=cfg, backend="numba" if HAVE_NUMBA else "numpy", fused=False,
                                      autoreset_mode="NextStep")
 
@@ -411,21 +413,30 @@ def test_a_new_reward_term_is_a_config_field_and_a_line_in_rules(kind, monkeypat
 @pytest.mark.slow
 @pytest.mark.skipif(not HAVE_NUMBA, reason="the fused step needs numba")
 def test_a_new_reward_term_reaches_the_fused_numba_step(monkeypatch):
-    """The same edit, on the fused numba step: its loop compiled again (numba reads the rules when it compiles)."""
+    """The same edit, on the fused numba step and the single env's compiled step: compiled again (numba reads the
+    rules when it compiles)."""
+    import gymnasium as gym
     import numba
 
     from pneunet_env import fused
     from pneunet_env.envs.grasp_vector import PneuNetGraspVectorEnv
     from pneunet_env.physics import xp
 
-    def make(cfg):
+    def vector(cfg):
         return PneuNetGraspVectorEnv(3, config=cfg, backend="numba", parallel=False, autoreset_mode="NextStep")
 
+    def single(cfg):
+        env = gym.make("PneuNetGrasp-v0", config=cfg)
+        assert env.unwrapped._single is not None
+        return env
+
     plain_cfg, bonus_cfg = _bonus_configs()
-    plain = _rollouts(make, plain_cfg)
+    plain = {make: _rollouts(make, plain_cfg) for make in (vector, single)}
     make_rules = _make_rules_with_contact_bonus()
     monkeypatch.setattr(fused, "_rules", make_rules(numba.njit(fused._flag_value), numba.njit(xp.scalar_max),
                                                     jit=numba.njit))
+    monkeypatch.setattr(fused, "_env_step", numba.njit(fused._env_step.py_func))  # the step's body, with the rules
     monkeypatch.setattr(fused, "_loop_serial", numba.njit(fused._make_loop(0, 0)))
-    bonus = _rollouts(make, bonus_cfg)
-    _assert_only_the_reward_moved(plain, bonus, 0.25)
+    monkeypatch.setattr(fused, "_SINGLES", {})  # the bonus config's params type: its single step compiled anew
+    for make in (vector, single):
+        _assert_only_the_reward_moved(plain[make], _rollouts(make, bonus_cfg), 0.25)

@@ -73,6 +73,11 @@ class SingleGraspEnv(gym.Env):
     def _after_reset(self, obj: GraspObject, options: dict[str, Any] | None) -> None:
         """Keep what the subclass needs of the new episode (its state is ``self.state``); nothing by default."""
 
+    def _step_state(self, state: task.EnvState, action: float) -> task.Step:
+        """One step from ``state``: :func:`pneunet_env.task.step` with the env's params and contact (a subclass may
+        compute the same step faster)."""
+        return task.step(state, action, self._params, self._contact)
+
     def _info(self, res: task.Step | None) -> dict[str, Any]:
         """The info of the current state (``res``: the step that reached it; ``None`` on reset)."""
         raise NotImplementedError
@@ -104,7 +109,7 @@ class SingleGraspEnv(gym.Env):
             raise ResetNeeded("the episode has ended (terminated or truncated): call reset() before step()")
         if is_torch(action):
             action = action.detach()  # a tensor that requires grad is read as its value (the env is not differentiable)
-        res = task.step(self._state, task.single_action(action), self._params, self._contact)
+        res = self._step_state(self._state, task.single_action(action))
         self._state = res.state
         info = self._info(res)
         terminated, truncated = bool(res.terminated), bool(res.truncated)

@@ -14,7 +14,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from pneunet_env import task
+from pneunet_env import fused, task
 from pneunet_env.config import EnvConfig
 from pneunet_env.envs.base import SingleGraspEnv
 from pneunet_env.physics.params import check_object
@@ -196,12 +196,19 @@ class PneuNetGraspEnv(SingleGraspEnv):
         super().__init__(render_mode, config, info_level, overrides)
         self._params = task.EnvParams.from_config(self.config)
         self._contact = task.newton_contact
+        # with numba, the step as one compiled call (pneunet_env.fused.SingleStep): task.step's result, bit for bit
+        self._single = fused.SingleStep(self._params) if fused.HAVE_FUSED else None
         self._class_names = task.class_names(self.config)
         self.observation_space = observation_space(self.config)
         self._warned = False
         self._static_info: dict[str, Any] | None = None
         self._viewer = None
         self._render_name = ""
+
+    def _step_state(self, state: task.EnvState, action: float) -> task.Step:
+        if self._single is None:
+            return super()._step_state(state, action)
+        return self._single(state, action)
 
     # ---- the episode's object ----------------------------------------------------------------------
     def _accept_object(self, obj) -> None:
