@@ -20,6 +20,11 @@ order; tested), so the env's info, autoreset and seeding are unchanged. Only the
 ``evaluations`` says so: with the cache (see :func:`fused_step`) a step starts from the evaluation its last step
 ended on, and where the pressure did not change and that start is a converged minimum (the descent's own test) the
 solve is skipped, its result being the start itself, as the continuation would return it.
+
+The single env's step (:class:`SingleStep`) is the same loop at N = 1, called from one compiled function on the
+env's state packed in one float array: one call from Python instead of the scalar :func:`pneunet_env.task.step`'s
+dozens, with the same :class:`~pneunet_env.task.Step`, bit for bit. (Calling the loop itself keeps one copy of the
+per-env code; a shared per-env function, tried first, cost the vector loop 5-9 % even inlined.)
 """
 
 from __future__ import annotations
@@ -67,58 +72,6 @@ class Outputs(NamedTuple):
 def _flag_value(flag):
     """A flag as the reward's number (1.0 or 0.0, what numpy's ``float * bool`` uses)."""
     return 1.0 if flag else 0.0
-
-
-def _env_step(a, command, k_in, s_in, p_in, force_in, delta_in, touch_in, dv_in, kobj, ko, failure, crush, grip,
-              task_state, tp, volume_scale, prm, opts, cache, valid, row):
-    """One env's step on numbers (the loop's body, and the single env's compiled step): ``cache[row]`` is the env's
-    evaluation cache and ``valid[row]`` whether it holds the start's evaluation (both updated in place; indexed, not
-    sliced: a view is reference-counted). Returns ``(clipped, solve, failed, command, outcome, obs0, obs1)``: the step's
-    :class:`Equilibrium` (even where it failed), the command kept, the rules' :class:`~pneunet_env.task.Outcome`, the
-    observation's entries (``obs1``: the volume entry, where ``volume_scale > 0``)."""
-    clipped = a < -1.0 or a > 1.0
-    a = min(max(a, -1.0), 1.0)
-    p = min(max(command + a * tp.pressure_step, 0.0), tp.pressure_max)
-    n_start = 0  # the start's evaluation: cached, or made here
-    if valid[row]:  # the evaluation at (k, s, p_eq) that the last step ended on
-        c = cache
-        ev0 = Evaluation(c[row, 0] != 0.0, c[row, 1], c[row, 2], c[row, 3], c[row, 4], c[row, 5], c[row, 6],
-                         c[row, 7], c[row, 8], c[row, 9])
-    else:
-        ev0 = _evaluate(k_in, s_in, p_in, prm, kobj, ko)
-        n_start = 1
-    # Where the pressure did not change and the start is a converged minimum (the descent's own test, on its own
-    # numbers), the continuation would return the start unchanged with no work: skip the call.
-    skip = False
-    if p == p_in and ev0.ok:
-        gn0 = math.hypot(ev0.g_kappa, ev0.g_strain)
-        lmin0 = sym2_eigvals(ev0.h_kk, ev0.h_ks, ev0.h_ss)[0]
-        skip = gn0 <= opts[0] and lmin0 > 0.0  # opts[0]: the gradient tolerance (SolverOptions.as_tuple())
-    if skip:
-        r = Continuation(k_in, s_in, ev0.energy, gn0, lmin0, 0, 0, False, STATUS_CONVERGED, ev0.volume_change, 0, 0,
-                         ev0)
-    else:
-        r = _follow_from(k_in, s_in, p_in, p, prm, kobj, ko, opts, ev0)
-    delta, force, touch = _contact(r.kappa, kobj, ko)
-    conv = r.status >= 0 and r.status <= 1
-    solve = Equilibrium(p, r.kappa, r.side_strain, prm.chamber_height * (1.0 + r.side_strain) * r.kappa, force, delta,
-                        touch, r.volume_change, r.energy, r.gradient_norm, r.min_eigenvalue, conv, r.iterations,
-                        r.substeps, r.snapped, r.status, kobj, ko, n_start + r.evaluations, r.backtracks)
-    failed = not conv
-    if not failed:  # the new state's evaluation, for the next step (a failed step keeps the state and its own)
-        ev = r.evaluation
-        c = cache
-        c[row, 0] = 1.0 if ev.ok else 0.0
-        c[row, 1], c[row, 2], c[row, 3], c[row, 4], c[row, 5] = ev.energy, ev.g_kappa, ev.g_strain, ev.h_kk, ev.h_ks
-        c[row, 6], c[row, 7], c[row, 8], c[row, 9] = ev.h_ss, ev.volume_change, ev.v_kappa, ev.v_strain
-        valid[row] = True
-    if failed:  # the previous state (and command) is kept
-        p, force, delta, touch, dv = command, force_in, delta_in, touch_in, dv_in
-    else:
-        dv = r.volume_change
-    o = _rules(task_state, Touch(force, delta, touch), Thresholds(failure, crush, grip), failed, tp)
-    obs1 = dv / volume_scale if volume_scale > 0.0 else 0.0
-    return clipped, solve, failed, p, o, p / tp.pressure_max, obs1
 
 
 def _make_loop(stamp: int, variant: int):
@@ -180,32 +133,66 @@ def _make_loop(stamp: int, variant: int):
         o_failed = out.failed
         o_clipped = out.clipped
         o_obs = out.obs
+        gtol = opts[0]  # SolverOptions.as_tuple(): the gradient tolerance first
         for i in numba.prange(action.shape[0]):
-            clipped, e, failed, p, o, obs0, obs1 = _env_step(
-                action[i], command[i], k_in[i], s_in[i], p_in[i], force_in[i], delta_in[i], touch_in[i], dv_in[i],
-                kobj[i], ko[i], failure[i], crush[i], grip[i], TaskState(step0[i], damaged0[i], dropped0[i], peak0[i]),
-                tp, volume_scale, prm, opts, ev_cache, ev_valid, i)
-            o_clipped[i] = clipped
-            o_p[i] = e.pressure
-            o_k[i] = e.curvature
-            o_s[i] = e.side_strain
-            o_top[i] = e.top_strain
-            o_force[i] = e.contact_force
-            o_delta[i] = e.indentation
-            o_touch[i] = e.in_contact
-            o_dv[i] = e.volume_change
-            o_energy[i] = e.energy
-            o_gn[i] = e.gradient_norm
-            o_lmin[i] = e.min_eigenvalue
-            o_conv[i] = e.converged
-            o_it[i] = e.iterations
-            o_sub[i] = e.substeps
-            o_snap[i] = e.snapped
-            o_status[i] = e.status
-            o_evals[i] = e.evaluations
-            o_backs[i] = e.backtracks
+            a = action[i]
+            o_clipped[i] = a < -1.0 or a > 1.0
+            a = min(max(a, -1.0), 1.0)
+            p = min(max(command[i] + a * tp.pressure_step, 0.0), tp.pressure_max)
+            c = ev_cache[i]  # the row of the evaluation cache: the kernel's Evaluation, the flag as 0/1
+            n_start = 0  # the start's evaluation: cached, or made here
+            if ev_valid[i]:  # the evaluation at (k, s, p_eq) that the last step ended on
+                ev0 = Evaluation(c[0] != 0.0, c[1], c[2], c[3], c[4], c[5], c[6], c[7], c[8], c[9])
+            else:
+                ev0 = _evaluate(k_in[i], s_in[i], p_in[i], prm, kobj[i], ko[i])
+                n_start = 1
+            # Where the pressure did not change and the start is a converged minimum (the descent's own test, on
+            # its own numbers), the continuation would return the start unchanged with no work: skip the call.
+            skip = False
+            if p == p_in[i] and ev0.ok:
+                gn0 = math.hypot(ev0.g_kappa, ev0.g_strain)
+                lmin0 = sym2_eigvals(ev0.h_kk, ev0.h_ks, ev0.h_ss)[0]
+                skip = gn0 <= gtol and lmin0 > 0.0
+            if skip:
+                r = Continuation(k_in[i], s_in[i], ev0.energy, gn0, lmin0, 0, 0, False, STATUS_CONVERGED,
+                                 ev0.volume_change, 0, 0, ev0)
+            else:
+                r = _follow_from(k_in[i], s_in[i], p_in[i], p, prm, kobj[i], ko[i], opts, ev0)
+            delta, force, touch = _contact(r.kappa, kobj[i], ko[i])
+            conv = r.status >= 0 and r.status <= 1
+            o_p[i] = p
+            o_k[i] = r.kappa
+            o_s[i] = r.side_strain
+            o_top[i] = prm.chamber_height * (1.0 + r.side_strain) * r.kappa
+            o_force[i] = force
+            o_delta[i] = delta
+            o_touch[i] = touch
+            o_dv[i] = r.volume_change
+            o_energy[i] = r.energy
+            o_gn[i] = r.gradient_norm
+            o_lmin[i] = r.min_eigenvalue
+            o_conv[i] = conv
+            o_it[i] = r.iterations
+            o_sub[i] = r.substeps
+            o_snap[i] = r.snapped
+            o_status[i] = r.status
+            o_evals[i] = n_start + r.evaluations
+            o_backs[i] = r.backtracks
+            failed = not conv
             o_failed[i] = failed
+            if not failed:  # the new state's evaluation, for the next step (a failed step keeps the state and its own)
+                ev = r.evaluation
+                c[0] = 1.0 if ev.ok else 0.0
+                c[1], c[2], c[3], c[4], c[5] = ev.energy, ev.g_kappa, ev.g_strain, ev.h_kk, ev.h_ks
+                c[6], c[7], c[8], c[9] = ev.h_ss, ev.volume_change, ev.v_kappa, ev.v_strain
+                ev_valid[i] = True
+            if failed:  # the previous state (and command) is kept
+                p, force, delta, touch, dv = command[i], force_in[i], delta_in[i], touch_in[i], dv_in[i]
+            else:
+                dv = r.volume_change
             o_command[i] = p
+            o = _rules(TaskState(step0[i], damaged0[i], dropped0[i], peak0[i]), Touch(force, delta, touch),
+                       Thresholds(failure[i], crush[i], grip[i]), failed, tp)
             o_step[i] = o.state.step
             o_damaged[i] = o.state.damaged
             o_dropped[i] = o.state.dropped
@@ -221,9 +208,9 @@ def _make_loop(stamp: int, variant: int):
             o_truncated[i] = o.truncated
             o_success[i] = o.success
             o_reward[i] = o.reward
-            o_obs[i, 0] = obs0
+            o_obs[i, 0] = p / tp.pressure_max
             if volume_scale > 0.0:
-                o_obs[i, 1] = obs1
+                o_obs[i, 1] = dv / volume_scale
 
     return _loop
 
@@ -236,8 +223,6 @@ if HAVE_NUMBA:
 
     _contact = contact.make_contact(_jit.njit(xp.scalar_max), _jit.njit(xp.scalar_where), jit=_jit.njit)[1]
     _rules = task.make_rules(_jit.njit(_flag_value), _jit.njit(xp.scalar_max), jit=_jit.njit)
-    # inlined where it is called (numba's IR): as a call, returning its records cost the fused loop 15-20 %
-    _env_step = numba.njit(_env_step, inline="always")
     _loop_serial, _loop_parallel = batched.compile_loops(_make_loop, _SOURCES)
 
 
@@ -315,33 +300,50 @@ STATE_SIZE = 28
 
 
 def _make_single(stamp: int, params_type: type = task.TaskParams):
-    def single(x, a, t, prm_t, opts, volume_scale, c, valid):
-        # x: the packed state (STATE_SIZE floats), updated in place; t, prm_t: the task's and the actuator's numbers as
-        # plain tuples (numba reads a NamedTuple argument through Python: microseconds a call); c, valid: the cache.
+    def single(x, a, t, prm_t, opts, volume_scale, cache, valid, f, n, b, obs):
+        # The fused loop at N = 1 (the vector env's own code, compiled for this call), on views of the packed state x
+        # (STATE_SIZE floats, updated in place) and of scratch arrays for what it writes (f: floats, n: integers,
+        # b: flags, obs: (1, 1 or 2)). t, prm_t: the task's and the actuator's numbers as plain tuples (numba reads a
+        # NamedTuple argument through Python: microseconds a call).
         if stamp < 0:  # the stamp keys the disk cache (see _jit.njit_cached)
             raise AssertionError
         tp = params_type(*t)
         prm = _solver.ActuatorNumbers(*prm_t)
-        clipped, e, failed, p, o, obs0, obs1 = _env_step(
-            a, x[0], x[2], x[3], x[1], x[5], x[6], x[7] != 0.0, x[8], x[17], x[18], x[21], x[22], x[23],
-            TaskState(np.int64(x[24]), x[25] != 0.0, x[26] != 0.0, x[27]), tp, volume_scale, prm, opts, c, valid, 0)
-        x[0] = p
+        flag = x[7:8] != 0.0  # the state's in_contact, as the loop reads it
+        eq = Equilibrium(x[1:2], x[2:3], x[3:4], x[4:5], x[5:6], x[6:7], flag, x[8:9], x[9:10], x[10:11], x[11:12],
+                         flag, n[0:1], n[0:1], flag, n[0:1], x[17:18], x[18:19], n[0:1], n[0:1])
+        state = TaskState(np.array([np.int64(x[24])]), x[25:26] != 0.0, x[26:27] != 0.0, x[27:28])
+        solve = Equilibrium(f[0:1], f[1:2], f[2:3], f[3:4], f[4:5], f[5:6], b[0:1], f[6:7], f[7:8], f[8:9], f[9:10],
+                            b[1:2], n[1:2], n[2:3], b[2:3], n[3:4], x[17:18], x[18:19], n[4:5], n[5:6])  # the object's
+        outcome = task.Outcome(TaskState(n[6:7], b[3:4], b[4:5], f[12:13]), b[5:6], b[6:7], b[7:8], b[8:9], b[9:10],
+                               b[10:11], b[11:12], b[12:13], b[13:14], b[14:15], f[13:14])
+        out = Outputs(f[14:15], solve, b[15:16], b[16:17], outcome, obs)
+        _loop_serial(np.array([a]), x[0:1], eq, x[17:18], x[18:19], Thresholds(x[21:22], x[22:23], x[23:24]), state,
+                     tp, volume_scale, prm, opts, cache, valid, out)
+        e, ts, failed = solve, outcome.state, out.failed[0]
+        e_in_contact, e_converged, e_snapped = e.in_contact[0], e.converged[0], e.snapped[0]
+        x[0] = out.command[0]
         if not failed:  # the new equilibrium (a failed step keeps the previous one)
-            x[1], x[2], x[3], x[4], x[5] = e.pressure, e.curvature, e.side_strain, e.top_strain, e.contact_force
-            x[6], x[7], x[8], x[9] = e.indentation, 1.0 if e.in_contact else 0.0, e.volume_change, e.energy
-            x[10], x[11], x[12], x[13] = e.gradient_norm, e.min_eigenvalue, 1.0 if e.converged else 0.0, e.iterations
-            x[14], x[15], x[16] = e.substeps, 1.0 if e.snapped else 0.0, e.status
-            x[17], x[18], x[19], x[20] = e.object_stiffness, e.object_curvature, e.evaluations, e.backtracks
-        ts = o.state
-        x[24], x[25], x[26], x[27] = ts.step, 1.0 if ts.damaged else 0.0, 1.0 if ts.dropped else 0.0, ts.peak_force
+            x[1], x[2], x[3], x[4], x[5] = e.pressure[0], e.curvature[0], e.side_strain[0], e.top_strain[0], \
+                e.contact_force[0]
+            x[6], x[7], x[8] = e.indentation[0], 1.0 if e_in_contact else 0.0, e.volume_change[0]
+            x[9], x[10], x[11] = e.energy[0], e.gradient_norm[0], e.min_eigenvalue[0]
+            x[12], x[13], x[14] = 1.0 if e_converged else 0.0, e.iterations[0], e.substeps[0]
+            x[15], x[16], x[17], x[18] = 1.0 if e_snapped else 0.0, e.status[0], e.object_stiffness[0], \
+                e.object_curvature[0]
+            x[19], x[20] = e.evaluations[0], e.backtracks[0]
+        x[24], x[25] = ts.step[0], 1.0 if ts.damaged[0] else 0.0
+        x[26], x[27] = 1.0 if ts.dropped[0] else 0.0, ts.peak_force[0]
+        o = outcome
         # plain tuples of numbers (see _jit.python_entry), the records' fields in their order
-        return ((clipped, failed, p, obs0, obs1),
-                (e.pressure, e.curvature, e.side_strain, e.top_strain, e.contact_force, e.indentation, e.in_contact,
-                 e.volume_change, e.energy, e.gradient_norm, e.min_eigenvalue, e.converged, e.iterations, e.substeps,
-                 e.snapped, e.status, e.object_stiffness, e.object_curvature, e.evaluations, e.backtracks),
-                (ts.step, ts.damaged, ts.dropped, ts.peak_force),
-                (o.in_hold, o.overstressed, o.crushed, o.damage_event, o.slipping, o.drop_event, o.held, o.terminated,
-                 o.truncated, o.success, o.reward))
+        return ((out.clipped[0], failed, out.command[0]),
+                (e.pressure[0], e.curvature[0], e.side_strain[0], e.top_strain[0], e.contact_force[0],
+                 e.indentation[0], e_in_contact, e.volume_change[0], e.energy[0], e.gradient_norm[0],
+                 e.min_eigenvalue[0], e_converged, e.iterations[0], e.substeps[0], e_snapped, e.status[0],
+                 e.object_stiffness[0], e.object_curvature[0], e.evaluations[0], e.backtracks[0]),
+                (ts.step[0], ts.damaged[0], ts.dropped[0], ts.peak_force[0]),
+                (o.in_hold[0], o.overstressed[0], o.crushed[0], o.damage_event[0], o.slipping[0], o.drop_event[0],
+                 o.held[0], o.terminated[0], o.truncated[0], o.success[0], o.reward[0]))
 
     return single
 
@@ -379,6 +381,9 @@ class SingleStep:
         self._vs = float(params.volume_scale) if self._volume else 0.0
         self._x = np.zeros(STATE_SIZE)
         self._c, self._valid = new_cache(1)
+        # the loop's outputs at N = 1: floats, integers, flags, the observation
+        self._f, self._n, self._b = np.empty(16), np.empty(7, np.int64), np.empty(17, bool)  # (f[10:12] unused)
+        self._obs = np.empty((1, 2 if self._volume else 1), np.float32)
         self._state: task.EnvState | None = None  # the state self._x holds
 
     def __getstate__(self) -> dict[str, Any]:
@@ -406,12 +411,13 @@ class SingleStep:
         if state is not self._state:
             self._load(state)
         a = check_action(action)
-        (clipped, failed, command, obs0, obs1), solve, ts, flags = self._call(
-            self._x, a, self._t, self._prm, self._opts, self._vs, self._c, self._valid)
+        (clipped, failed, command), solve, ts, flags = self._call(
+            self._x, a, self._t, self._prm, self._opts, self._vs, self._c, self._valid, self._f, self._n, self._b,
+            self._obs)
         solve = Equilibrium._make(solve)
         ts = TaskState._make(ts)
         outcome = task.Outcome(ts, *flags)
-        obs = np.array((obs0, obs1) if self._volume else (obs0,), np.float32)
+        obs = self._obs[0].copy()
         self._state = new = task.EnvState(command, state.eq if failed else solve, state.obj, state.thresholds, ts)
         return task.Step(new, obs, outcome.reward, outcome.terminated, outcome.truncated, solve, outcome, clipped,
                          failed)

@@ -435,7 +435,6 @@ def test_a_new_reward_term_reaches_the_fused_numba_step(monkeypatch):
     make_rules = _make_rules_with_contact_bonus()
     monkeypatch.setattr(fused, "_rules", make_rules(numba.njit(fused._flag_value), numba.njit(xp.scalar_max),
                                                     jit=numba.njit))
-    monkeypatch.setattr(fused, "_env_step", numba.njit(fused._env_step.py_func))  # the step's body, with the rules
     monkeypatch.setattr(fused, "_loop_serial", numba.njit(fused._make_loop(0, 0)))
     monkeypatch.setattr(fused, "_SINGLES", {})  # the bonus config's params type: its single step compiled anew
     for make in (vector, single):
