@@ -603,7 +603,8 @@ def plot(res: dict[str, Any], path: Path) -> None:
         ax1.text(b.get_x() + b.get_width() / 2, v, f"{v:.2f} µs", ha="center", va="bottom", fontsize=10)
     limit = TARGETS["single_step_ratio_max"] * s["CartPole-v1"] * 1e6
     ax1.axhline(limit, color="0.3", ls="--", lw=1)
-    ax1.text(1.32, limit, "target:\n2× CartPole", va="center", fontsize=8, color="0.3")
+    ax1.text(1.32, limit, f"target:\n{TARGETS['single_step_ratio_max']:g}× CartPole", va="center", fontsize=8,
+             color="0.3")
     ax1.set_ylim(0, max(max(vals), limit) * 1.25)
     ax1.set_ylabel("median env.step time (µs)")
     ax1.set_title(f"single env (gym.make): ratio {res['single_env']['ratio']:.2f}×", fontsize=11)
