@@ -44,11 +44,12 @@ def test_the_compiled_solver_returns_records():
     assert type(r) is Solve and r.status <= 1 and r.kappa == r[0] and r.backtracks == r[-1] and r.evaluations > 0
     m = minimise_state((r.kappa, r.side_strain), 0.5, None, 1e-4, 0.02)
     assert type(m) is Minimum and m.kappa == pytest.approx(r.kappa, abs=1e-12)
-    ev = solver._evaluate(r.kappa, r.side_strain, 0.5, params_tuple(None), 1e-4, 0.02)
+    ev = solver.evaluate_state(r.kappa, r.side_strain, 0.5, params_tuple(None), 1e-4, 0.02)
     assert type(ev) is Evaluation and ev.ok and ev.volume_change == pytest.approx(r.volume_change, abs=1e-13)
     assert params_tuple(None).chamber_height == params_tuple(None)[0]
 
 
+@pytest.mark.slow  # it compiles the solver's closures (seconds; the entries are cached on disk, they are not)
 @pytest.mark.skipif(not HAVE_NUMBA, reason="needs numba")
 def test_the_python_entries_return_the_compiled_records_field_for_field():
     """The entries Python calls (plain tuples across the boundary, records rebuilt in Python: see

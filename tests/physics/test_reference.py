@@ -114,7 +114,7 @@ def test_the_energy_kernel_matches_the_30_digit_energy_and_gradient():
     checked = 0
     with mp.workdps(40):
         for k, s, p, kobj, ko in points:
-            ev = solver._evaluate(k, s, p, prm, kobj, ko)
+            ev = solver.evaluate_state(k, s, p, prm, kobj, ko)
             assert ev.ok
             f = lambda a, b, p=p, kobj=kobj, ko=ko: reference_energy(mp, a, b, p, params, kobj, ko)  # noqa: E731
             x = [mp.mpf(k), mp.mpf(s)]
