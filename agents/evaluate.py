@@ -295,8 +295,9 @@ def stiffness_bins(config: EnvConfig, n: int, k_min: float | None = None,
     lo, hi = _stiffness_bounds(config, k_min, k_max)
     if lo == hi:
         lo, hi = lo / 1.01, hi * 1.01
-    edges = np.logspace(math.log10(lo), math.log10(hi), int(n) + 1)
-    return np.sqrt(edges[:-1] * edges[1:]), edges
+    log_edges = np.linspace(math.log10(lo), math.log10(hi), int(n) + 1)
+    # the geometric midpoints, taken in log space: a product of two edges overflows near the float's limit
+    return 10.0 ** (0.5 * (log_edges[:-1] + log_edges[1:])), 10.0 ** log_edges
 
 
 def _edges_around(grid) -> np.ndarray:

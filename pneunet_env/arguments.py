@@ -130,21 +130,30 @@ def check_output_dir(path: str | os.PathLike, option: str = "--out") -> Path:
         raise ValueError(str(exc)) from None
 
 
-def _output_dir(path, option: str) -> Path:
+def _named_path(path, option: str) -> tuple[Path, str, str]:
+    """``(path, its text, how a message names it)``; an empty path refused."""
     text = os.fspath(path)
     shown = f"{option} {text!r}" if option else repr(text)
     if not str(text).strip():
         raise argparse.ArgumentTypeError(f"{shown}: an empty path")
-    p = Path(text)
+    return Path(text), str(text), shown
+
+
+def _creatable_under(folder: Path, shown: str) -> None:
+    """``folder`` (a path's nearest existing ancestor) is a folder this process can write in."""
+    if not folder.is_dir():
+        raise argparse.ArgumentTypeError(f"{shown}: cannot be created, {str(folder)!r} is a file, not a folder")
+    _writable(folder, shown)
+
+
+def _output_dir(path, option: str) -> Path:
+    p, _, shown = _named_path(path, option)
     if p.exists():
         if not p.is_dir():
             raise argparse.ArgumentTypeError(f"{shown} exists and is not a folder (it would hold the outputs)")
         _writable(p, shown)
         return p
-    anc = _nearest_existing(p)
-    if not anc.is_dir():
-        raise argparse.ArgumentTypeError(f"{shown}: cannot be created, {str(anc)!r} is a file, not a folder")
-    _writable(anc, shown)
+    _creatable_under(_nearest_existing(p), shown)
     return p
 
 
@@ -163,19 +172,12 @@ def check_output_file(path: str | os.PathLike, option: str = "--out") -> Path:
 
 
 def _output_file(path, option: str) -> Path:
-    text = os.fspath(path)
-    shown = f"{option} {text!r}" if option else repr(text)
-    if not str(text).strip():
-        raise argparse.ArgumentTypeError(f"{shown}: an empty path")
-    p = Path(text)
-    if p.is_dir() or str(text).endswith(("/", os.sep)):
+    p, text, shown = _named_path(path, option)
+    if p.is_dir() or text.endswith(("/", os.sep)):
         raise argparse.ArgumentTypeError(f"{shown} is a folder; give a file name")
     if p.exists() and not p.is_file():
         raise argparse.ArgumentTypeError(f"{shown} exists and is not a regular file")
-    anc = _nearest_existing(p.parent)
-    if not anc.is_dir():
-        raise argparse.ArgumentTypeError(f"{shown}: cannot be created, {str(anc)!r} is a file, not a folder")
-    _writable(anc, shown)
+    _creatable_under(_nearest_existing(p.parent), shown)
     return p
 
 

@@ -163,6 +163,9 @@ _KEYS = {("lean", False): LEAN_KEYS, ("lean", True): tuple(k for k in FULL_KEYS 
          ("full", False): FULL_KEYS, ("full", True): FULL_KEYS}
 """The keys of an info by ``(level, at reset)``."""
 
+_ROWS = {key: tuple((k, INFO[k].value, INFO[k].level == "object") for k in keys) for key, keys in _KEYS.items()}
+"""``(key, function, an object constant?)`` of each key of :data:`_KEYS` (looked up once, not on every step)."""
+
 
 def info_keys(level: str) -> tuple[str, ...]:
     """Every key an info of ``level`` can hold (the lean level's reset info adds the object's constants)."""
@@ -203,7 +206,7 @@ def build_info(
     if level not in INFO_LEVELS:
         raise ValueError(f"info_level must be one of {INFO_LEVELS}, got {level!r}")
     c = InfoContext(params, state.obj, state.thresholds, state, result)
-    keys = _KEYS[level, result is None]
+    rows = _ROWS[level, result is None]
     if static is None:
-        return {k: INFO[k].value(c) for k in keys}
-    return {k: static[k] if INFO[k].level == "object" else INFO[k].value(c) for k in keys}
+        return {k: value(c) for k, value, _ in rows}
+    return {k: static[k] if constant else value(c) for k, value, constant in rows}

@@ -107,6 +107,17 @@ def test_stiffness_grid_spans_the_catalogue_on_the_default_task():
     assert lo <= k.min() and k.max() <= hi
 
 
+def test_bins_up_to_the_largest_float_have_finite_centres_without_a_warning():
+    """``evaluate --k-max 1e308`` gave an overflow warning in the centres (the product of two edges); they are taken
+    in log space now."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        centres, edges = stiffness_bins(EnvConfig(), 5, 1e-6, 1e308)
+    assert np.isfinite(centres).all() and edges[-1] == pytest.approx(1e308) and (np.diff(centres) > 0).all()
+
+
 def test_draw_bins_holds_drawn_objects_of_each_bin():
     cfg = EnvConfig()
     _, edges = stiffness_bins(cfg, 3)
