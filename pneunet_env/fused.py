@@ -315,9 +315,9 @@ def _make_single(stamp: int, params_type: type = task.TaskParams):
         state = TaskState(np.array([np.int64(x[24])]), x[25:26] != 0.0, x[26:27] != 0.0, x[27:28])
         solve = Equilibrium(f[0:1], f[1:2], f[2:3], f[3:4], f[4:5], f[5:6], b[0:1], f[6:7], f[7:8], f[8:9], f[9:10],
                             b[1:2], n[1:2], n[2:3], b[2:3], n[3:4], x[17:18], x[18:19], n[4:5], n[5:6])  # the object's
-        outcome = task.Outcome(TaskState(n[6:7], b[3:4], b[4:5], f[12:13]), b[5:6], b[6:7], b[7:8], b[8:9], b[9:10],
-                               b[10:11], b[11:12], b[12:13], b[13:14], b[14:15], f[13:14])
-        out = Outputs(f[14:15], solve, b[15:16], b[16:17], outcome, obs)
+        outcome = task.Outcome(TaskState(n[6:7], b[3:4], b[4:5], f[10:11]), b[5:6], b[6:7], b[7:8], b[8:9], b[9:10],
+                               b[10:11], b[11:12], b[12:13], b[13:14], b[14:15], f[11:12])
+        out = Outputs(f[12:13], solve, b[15:16], b[16:17], outcome, obs)
         _loop_serial(np.array([a]), x[0:1], eq, x[17:18], x[18:19], Thresholds(x[21:22], x[22:23], x[23:24]), state,
                      tp, volume_scale, prm, opts, cache, valid, out)
         e, ts, failed = solve, outcome.state, out.failed[0]
@@ -382,7 +382,7 @@ class SingleStep:
         self._x = np.zeros(STATE_SIZE)
         self._c, self._valid = new_cache(1)
         # the loop's outputs at N = 1: floats, integers, flags, the observation
-        self._f, self._n, self._b = np.empty(16), np.empty(7, np.int64), np.empty(17, bool)  # (f[10:12] unused)
+        self._f, self._n, self._b = np.empty(13), np.empty(7, np.int64), np.empty(17, bool)
         self._obs = np.empty((1, 2 if self._volume else 1), np.float32)
         self._state: task.EnvState | None = None  # the state self._x holds
 

@@ -531,29 +531,35 @@ _evaluate, _minimise, _follow_ev, _follow_from = _make_parts(mechanics.make_term
 # turn a Ctrl-C into a segmentation fault).
 
 
+@njit
+def _solve_numbers(r):
+    """A :class:`Solve`'s fields (a :class:`Continuation`'s before its ``evaluation``) as a plain tuple."""
+    return (r.kappa, r.side_strain, r.energy, r.gradient_norm, r.min_eigenvalue, r.iterations, r.substeps, r.snapped,
+            r.status, r.volume_change, r.evaluations, r.backtracks)
+
+
+@njit
+def _evaluation_numbers(e):
+    """An :class:`Evaluation`'s fields as a plain tuple."""
+    return (e.ok, e.energy, e.g_kappa, e.g_strain, e.h_kk, e.h_ks, e.h_ss, e.volume_change, e.v_kappa, e.v_strain)
+
+
 def _make_entries(stamp: int):
     def plain_step_state(k, s, p0, p1, prm, kobj, ko, opts):
         if stamp < 0:  # the stamp keys the disk cache (see _jit.njit_cached)
             raise AssertionError
-        r = _follow_ev(k, s, p0, p1, prm, kobj, ko, opts)
-        return (r.kappa, r.side_strain, r.energy, r.gradient_norm, r.min_eigenvalue, r.iterations, r.substeps,
-                r.snapped, r.status, r.volume_change, r.evaluations, r.backtracks)
+        return _solve_numbers(_follow_ev(k, s, p0, p1, prm, kobj, ko, opts))
 
     def plain_evaluate(k, s, p, prm, kobj, ko):
         if stamp < 0:
             raise AssertionError
-        e = _evaluate(k, s, p, prm, kobj, ko)
-        return (e.ok, e.energy, e.g_kappa, e.g_strain, e.h_kk, e.h_ks, e.h_ss, e.volume_change, e.v_kappa, e.v_strain)
+        return _evaluation_numbers(_evaluate(k, s, p, prm, kobj, ko))
 
     def plain_step_state_from(k, s, p0, p1, prm, kobj, ko, opts, ev0):
         if stamp < 0:
             raise AssertionError
         r = _follow_from(k, s, p0, p1, prm, kobj, ko, opts, ev0)
-        e = r.evaluation
-        return (r.kappa, r.side_strain, r.energy, r.gradient_norm, r.min_eigenvalue, r.iterations, r.substeps,
-                r.snapped, r.status, r.volume_change, r.evaluations, r.backtracks,
-                (e.ok, e.energy, e.g_kappa, e.g_strain, e.h_kk, e.h_ks, e.h_ss, e.volume_change, e.v_kappa,
-                 e.v_strain))
+        return _solve_numbers(r) + (_evaluation_numbers(r.evaluation),)
 
     def plain_minimise(k, s, p, prm, kobj, ko, gtol, max_iter, eig_floor):
         if stamp < 0:
