@@ -18,8 +18,6 @@ autoreset test), so they are what a training loop sees.
 
 from __future__ import annotations
 
-import os
-import platform
 import time
 from pathlib import Path
 from typing import Any
@@ -130,8 +128,10 @@ def run_sweep(backends: list[str], devices: list[str], num_envs: list[int], env_
     for r in rows:
         ref = numba.get(r["num_envs"])
         r["speedup_over_numba"] = None if ref is None else r["steps_per_s"] / ref["steps_per_s"]
-    machine: dict[str, Any] = {"platform": platform.platform(), "python": platform.python_version(),
-                               "cpus": os.cpu_count()}
+    from pneunet_env.bench.speed import _load, _machine
+
+    machine = _machine()  # after the runs: numba's threading layer is chosen at the first parallel one
+    machine["load_average"] = _load()
     if "torch" in backends:
         import torch
 
@@ -139,11 +139,6 @@ def run_sweep(backends: list[str], devices: list[str], num_envs: list[int], env_
         if any(str(d).startswith("cuda") for d in devices) and torch.cuda.is_available():
             machine["gpu"] = torch.cuda.get_device_name(0)
             machine["cuda"] = torch.version.cuda
-    if HAVE_NUMBA:
-        import numba as nb
-
-        machine["numba"] = nb.__version__
-        machine["numba_threads"] = nb.get_num_threads()
     return {"rows": rows, "machine": machine, "compile": compile, "wall_s": time.perf_counter() - t_start}
 
 
@@ -156,7 +151,8 @@ def _label(r: dict[str, Any]) -> str:
 def format_sweep(res: dict[str, Any]) -> str:
     """The printed table."""
     m = res["machine"]
-    head = (f"PneuNetGrasp-v0 vector env by backend ({m['cpus']} CPUs"
+    layer = f", numba {m['numba_threads']} threads, layer {m['threading_layer']}" if m.get("numba") else ""
+    head = (f"PneuNetGrasp-v0 vector env by backend ({m['cpus']} CPUs{layer}"
             + (f", GPU {m['gpu']}" if "gpu" in m else "") + ")")
     lines = [head, "",
              f"{'backend':<26}{'N':>9}{'env-steps/s':>14}{'CartPoleVec':>14}{'ratio':>8}{'vs numba':>10}"

@@ -13,8 +13,9 @@ advances every env's control flow by three masked phases (the end of a Newton it
 the continuation's loop). Every register update is a ``where``: no Python branch depends on an env's values, no
 env is gathered, so a round is a fixed sequence of array operations (what a GPU and ``torch.compile`` want).
 
-Between rounds the driver may, on a CPU, drop the envs that have finished (``compact``); on a GPU it only checks
-every ``check_every`` rounds whether any env is still live (each check is a host sync). ``max_rounds`` bounds the
+Between rounds the driver may drop the envs that have finished (``compact``: a gather, which changes N), or, for a
+round of fixed N (``torch.compile``'s), only check every ``check_every`` rounds whether any env is still live (on a
+GPU each check is a host sync). ``max_rounds`` bounds the
 work: an env still running then ends with ``STATUS_BUDGET`` (unconverged, flagged), never a hang.
 
 Written once, against :class:`pneunet_env.physics.xp.Ops`: :data:`pneunet_env.physics.xp.NUMPY` is the
@@ -325,7 +326,7 @@ def solve_masked(k, s, p0, p1, kobj, ko, prm, opts, active, ops: Ops, *, compact
         prm: :func:`pneunet_env.physics.solver.params_tuple`; opts: :meth:`SolverOptions.as_tuple`.
         active: bool ``(N,)``; inactive envs keep their state (NaN diagnostics, ``STATUS_INACTIVE``).
         ops: the namespace (:data:`pneunet_env.physics.xp.NUMPY` or :func:`~pneunet_env.physics.xp.torch_ops`).
-        compact: drop finished envs from the rounds once fewer than half are live (gathers: for CPUs).
+        compact: drop finished envs from the rounds once at most half are live (a gather).
         check_every: rounds between the checks for live envs (each a host sync on a GPU).
         max_rounds: bound on the rounds; envs still running then end with ``STATUS_BUDGET``. ``None``: until
             every env has finished (the algorithm's own budgets, ``max_iter`` and ``max_substeps``, bound it).

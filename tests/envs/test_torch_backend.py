@@ -21,15 +21,19 @@ torch = pytest.importorskip("torch")
 
 REFERENCE = "numba" if HAVE_NUMBA else "numpy"
 TOL = 1e-9
+DEVICES = ["cpu", pytest.param("cuda", marks=pytest.mark.skipif(not torch.cuda.is_available(),
+                                                                 reason="needs a CUDA GPU"))]
+"""torch's devices: the CPU everywhere, and a GPU where there is one (CI has none; run on a GPU machine)."""
 
 
 QUICK_SCENES = ("fold",)  # the rest run with the slow tests
 
 
+@pytest.mark.parametrize("device", DEVICES)
 @pytest.mark.parametrize("scene", [
     sc if sc.name in QUICK_SCENES else pytest.param(sc, marks=pytest.mark.slow) for sc in make_scenes(quick=True)
 ], ids=lambda s: s.name)
-def test_masked_torch_solver_follows_the_solver_study_scenes(scene):
+def test_masked_torch_solver_follows_the_solver_study_scenes(scene, device):
     """Every scene (a snap-through fold, the Gent limit, big steps, the catalogue's stiffest corner ...), walked
     point by point: the torch answers equal the compiled ones (status, convergence, snaps; states to 1e-9)."""
     k = {b: np.zeros(1) for b in (REFERENCE, "torch")}
@@ -40,11 +44,12 @@ def test_masked_torch_solver_follows_the_solver_study_scenes(scene):
         out = {}
         for b in (REFERENCE, "torch"):
             out[b] = solve_batch(k[b], s[b], p0, p1, scene.object_stiffness, scene.object_curvature, scene.params,
-                                 backend=b)
-            k[b] = np.asarray(out[b].curvature if b != "torch" else out[b].curvature.numpy())
-            s[b] = np.asarray(out[b].side_strain if b != "torch" else out[b].side_strain.numpy())
+                                 backend=b, **({"device": device} if b == "torch" else {}))
+            k[b] = _host(out[b].curvature)
+            s[b] = _host(out[b].side_strain)
         ref, tor = out[REFERENCE], out["torch"]
         assert isinstance(tor.curvature, torch.Tensor) and tor.curvature.dtype == torch.float64
+        assert tor.curvature.device.type == device
         assert int(tor.status[0]) == int(ref.status[0]), (scene.name, p1)
         assert bool(tor.converged[0]) == bool(ref.converged[0])
         assert bool(tor.snapped[0]) == bool(ref.snapped[0])
@@ -83,17 +88,19 @@ def _host(x):
     return x.cpu().numpy() if isinstance(x, torch.Tensor) else np.asarray(x)
 
 
+@pytest.mark.parametrize("device", DEVICES)
 @pytest.mark.parametrize("env_id,mode", [
     pytest.param("PneuNetGrasp-v0", "SameStep", marks=pytest.mark.slow),  # 10 s: every param runs in CI
     pytest.param("PneuNetGrasp-v0", "NextStep", marks=pytest.mark.slow),
     pytest.param("PneuNetGrasp-Paper-v0", "SameStep", marks=pytest.mark.slow),
 ])
-def test_torch_vector_env_agrees_with_numba_through_autoresets(env_id, mode):
+def test_torch_vector_env_agrees_with_numba_through_autoresets(env_id, mode, device):
     n, steps = 24, 60
     # the paper's ring keeps going when damaged, so that its grasps reach the fold
     kw = {"terminate_on_damage": False} if "Paper" in env_id else {}
     ref = gym.make_vec(env_id, num_envs=n, backend=REFERENCE, info_level="full", autoreset_mode=mode, **kw)
-    tor = gym.make_vec(env_id, num_envs=n, backend="torch", device="cpu", info_level="full", autoreset_mode=mode, **kw)
+    tor = gym.make_vec(env_id, num_envs=n, backend="torch", device=device, info_level="full", autoreset_mode=mode,
+                       **kw)
     # the paper's ring: the first episodes pinned across its snap-through window (k~ 5e-5 .. 1e-3)
     pins = {"object_stiffness": np.geomspace(5e-5, 1e-3, n)} if "Paper" in env_id else None
     o1, i1 = ref.reset(seed=11, options=pins)
@@ -107,7 +114,7 @@ def test_torch_vector_env_agrees_with_numba_through_autoresets(env_id, mode):
         # big steps (|a| up to 3, clipped), ramps and releases: folds, contact onset, damage, slip, autoresets
         a = (rng.uniform(-1.0, 3.0, (n, 1)) if t % 3 else rng.uniform(-3.0, 1.0, (n, 1))).astype(np.float32)
         r1 = ref.step(a)
-        r2 = tor.step(torch.from_numpy(a))
+        r2 = tor.step(torch.from_numpy(a).to(device))
         info1, info2 = r1[4], r2[4]
         flags_equal = [np.array_equal(r1[j], _host(r2[j])) for j in range(4)]
         if not all(flags_equal):
@@ -174,10 +181,11 @@ def test_torch_vector_env_renders_and_reports_objects():
 
 @pytest.mark.slow  # a few seconds: the quick loop stays under a minute
 def test_the_gpu_form_of_the_masked_solver_equals_the_cpu_form():
-    """What a GPU runs (no compaction of finished envs, a live check every 8 rounds) gives the CPU form's answers on the
-    CPU: the same path (iterations, sub-steps, snaps, status) and the same states to the last bits (an AVX2 machine
-    rounds one env's side strain 1 ulp apart: the arrays' lengths differ, and with them torch's vectorised tails);
-    and a round budget flags the envs it cuts short (STATUS_BUDGET, unconverged), never hangs."""
+    """What ``torch.compile``'s round runs on a GPU (every env through every round, a check every 8 rounds), and
+    compaction checked at another cadence, give the CPU form's answers on the CPU: the
+    same path (iterations, sub-steps, snaps, status) and the same states to the last bits (an AVX2 machine rounds one
+    env's side strain 1 ulp apart: the arrays' lengths differ, and with them torch's vectorised tails); and a round
+    budget flags the envs it cuts short (STATUS_BUDGET, unconverged), never hangs."""
     from pneunet_env.physics import masked
     from pneunet_env.physics.solver import DEFAULT_OPTIONS, STATUS_BUDGET, params_tuple
     from pneunet_env.physics.xp import torch_ops
@@ -191,13 +199,15 @@ def test_the_gpu_form_of_the_masked_solver_equals_the_cpu_form():
     active = torch.tensor(rng.random(n) < 0.95)
     ops, prm, opts = torch_ops("cpu"), params_tuple(None), DEFAULT_OPTIONS.as_tuple()
     cpu = masked.solve_masked(k, s, k * 0, p1, kobj, ko, prm, opts, active, ops, compact=True)
-    gpu = masked.solve_masked(k, s, k * 0, p1, kobj, ko, prm, opts, active, ops, compact=False, check_every=8)
-    for name in masked.OUTPUTS:
-        a, b = torch.nan_to_num(cpu[name].double(), nan=-7.0), torch.nan_to_num(gpu[name].double(), nan=-7.0)
-        if name in ("iterations", "substeps", "snapped", "status"):  # the path taken: the same, exactly
-            assert torch.equal(a, b), name
-        else:  # compaction changes the vector lengths, so torch's SIMD tails (CPU-dependent) may round the last bit
-            assert torch.allclose(a, b, rtol=1e-13, atol=1e-13), (name, float((a - b).abs().max()))
+    for compact, every in ((False, 8), (True, 3)):  # the compiled round's schedule, and compaction at another cadence
+        gpu = masked.solve_masked(k, s, k * 0, p1, kobj, ko, prm, opts, active, ops, compact=compact,
+                                  check_every=every)
+        for name in masked.OUTPUTS:
+            a, b = torch.nan_to_num(cpu[name].double(), nan=-7.0), torch.nan_to_num(gpu[name].double(), nan=-7.0)
+            if name in ("iterations", "substeps", "snapped", "status"):  # the path taken: the same, exactly
+                assert torch.equal(a, b), name
+            else:  # compaction changes the vector lengths: torch's SIMD tails (CPU-dependent) may round the last bit
+                assert torch.allclose(a, b, rtol=1e-13, atol=1e-13), (name, float((a - b).abs().max()))
     cut = masked.solve_masked(k, s, k * 0, p1, kobj, ko, prm, opts, active, ops, compact=False, check_every=8,
                               max_rounds=5)
     flagged = cut["status"] == STATUS_BUDGET
