@@ -128,10 +128,11 @@ def run_sweep(backends: list[str], devices: list[str], num_envs: list[int], env_
     for r in rows:
         ref = numba.get(r["num_envs"])
         r["speedup_over_numba"] = None if ref is None else r["steps_per_s"] / ref["steps_per_s"]
-    from pneunet_env.bench.speed import _load, _machine
+    from pneunet_env.bench.machine import load_average
+    from pneunet_env.bench.machine import machine as host
 
-    machine = _machine()  # after the runs: numba's threading layer is chosen at the first parallel one
-    machine["load_average"] = _load()
+    machine = host()  # after the runs: numba's threading layer is chosen at the first parallel one
+    machine["load_average"] = load_average()
     if "torch" in backends:
         import torch
 

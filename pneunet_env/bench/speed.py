@@ -30,8 +30,6 @@ from __future__ import annotations
 
 import argparse
 import math
-import os
-import platform
 import time
 import tracemalloc
 from pathlib import Path
@@ -40,6 +38,8 @@ from typing import Any
 import numpy as np
 
 from pneunet_env import arguments as checks
+from pneunet_env.bench.machine import load_average as _load
+from pneunet_env.bench.machine import machine as _machine
 from pneunet_env.files import atomic_write_json, save_figure
 from pneunet_env.progress import add_progress_argument
 from pneunet_env.progress import progress as progress_bar
@@ -426,43 +426,6 @@ def bench_memory(num_envs: int, steps: int, seed: int = 0, backend: str = "auto"
 # --------------------------------------------------------------------------------------------------------
 # The whole benchmark
 # --------------------------------------------------------------------------------------------------------
-
-
-def _load() -> list[float] | None:
-    """The 1/5/15-minute load averages (other work on the machine makes every figure slower), if available."""
-    try:
-        return [round(x, 2) for x in os.getloadavg()]
-    except (AttributeError, OSError):  # pragma: no cover - not on Windows
-        return None
-
-
-def _machine() -> dict[str, Any]:
-    import gymnasium
-
-    from pneunet_env.physics._jit import HAVE_NUMBA
-
-    info = {
-        "python": platform.python_version(),
-        "numpy": np.__version__,
-        "gymnasium": gymnasium.__version__,
-        "numba": None,
-        "platform": platform.platform(),
-        "processor": platform.processor() or platform.machine(),
-        "cpus": os.cpu_count(),
-    }
-    if HAVE_NUMBA:
-        import numba
-
-        from pneunet_env.physics.batched import TBB_LOADED
-
-        info["numba"] = numba.__version__
-        info["numba_threads"] = numba.get_num_threads()
-        try:  # the layer the parallel loops ran on (after the runs: it is chosen at the first one)
-            info["threading_layer"] = numba.threading_layer()
-        except ValueError:
-            info["threading_layer"] = None
-        info["tbb_loaded"] = TBB_LOADED
-    return info
 
 
 def run_benchmark(quick: bool = False, progress: bool | None = None, backend: str = "auto", seed: int = 0,

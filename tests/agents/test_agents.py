@@ -245,6 +245,7 @@ def test_rigid_env_rejects_nan_actions():
 # ---- the search ---------------------------------------------------------------------------------------------
 
 
+@pytest.mark.slow  # 11 s: a ramp search end to end; the README's test command runs it
 def test_search_finds_the_best_of_a_small_grid():
     best, cands = search_ramp(CFG, "pneunet", n_objects=8, seed=0, targets=[0.3, 0.75, 1.0], durations=[20],
                               refine=0.0, progress=False)

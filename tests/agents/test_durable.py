@@ -295,6 +295,7 @@ def test_an_interrupted_seed_is_not_done(tmp_path):
         assert _done(tmp_path, hp) is done, state
 
 
+@pytest.mark.slow  # 3 s: a training run; the README's test command runs it
 def test_checkpoints_are_whole_zips_with_their_statistics_first(tmp_path, monkeypatch):
     sb3 = pytest.importorskip("stable_baselines3")
     import gymnasium as gym

@@ -392,6 +392,7 @@ def test_smoke_train_resume_export(tmp_path):
     assert meta["algo"] == "ppo" and meta["reproduce"].startswith("pneunet-grasp train --config")
 
 
+@pytest.mark.slow  # 4 s: a training run; the README's test command runs it
 @pytest.mark.filterwarnings("ignore::UserWarning")
 def test_smoke_train_on_sb3_dummy_vec_env(tmp_path):
     pytest.importorskip("stable_baselines3")

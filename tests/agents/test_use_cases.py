@@ -23,6 +23,7 @@ def test_the_docs_table_lists_every_use_case():
     assert set(_docs_rows()) == set(load_use_cases())
 
 
+@pytest.mark.slow  # 4 s: an evaluation per use case; the README's test command runs it
 @pytest.mark.parametrize("name", sorted(load_use_cases()))
 def test_the_docs_table_is_what_the_catalogue_gives(name):
     force, position, span = _docs_rows()[name]

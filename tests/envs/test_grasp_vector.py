@@ -111,7 +111,8 @@ def test_vector_env_equals_n_single_envs_with_auto_resets(backend):
 
 @pytest.mark.parametrize("objects", ["ranges", "catalogue"])
 @pytest.mark.parametrize("mode", [AutoresetMode.SAME_STEP, AutoresetMode.NEXT_STEP])
-@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("backend", [  # with numba, the numpy fallback's four cases (7 s) run with the slow tests
+    pytest.param(b, marks=pytest.mark.slow) if b == "numpy" and HAVE_NUMBA else b for b in BACKENDS])
 def test_vector_env_is_the_sync_vector_env_of_single_envs(backend, mode, objects):
     """Step for step, Gymnasium's SyncVectorEnv of single envs in the same autoreset mode, every key of the vector
     info included, through many episode ends; objects from ranges and from the catalogue."""
@@ -135,6 +136,7 @@ def test_vector_env_is_the_sync_vector_env_of_single_envs(backend, mode, objects
     vec.close()
 
 
+@pytest.mark.slow  # 4 s: a run at scale; the README's test command runs it
 def test_default_config_run_converges_and_matches_singles_at_scale():
     """64 envs at the default config over 250 steps (two and a half episodes): every solve converged."""
     n, steps = 64, 250

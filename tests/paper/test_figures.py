@@ -45,6 +45,7 @@ def quick_run(tmp_path_factory):
     return out, rc
 
 
+@pytest.mark.slow  # the quick figure run (7 s) they share; the README's test command runs it
 def test_quick_run_writes_every_figure(quick_run):
     out, rc = quick_run
     assert rc == 0
@@ -57,6 +58,7 @@ def test_quick_run_writes_every_figure(quick_run):
     assert len(rows) == len(CHECKS)
 
 
+@pytest.mark.slow  # the quick figure run (7 s) they share; the README's test command runs it
 def test_pngs_are_real_images(quick_run):
     import matplotlib.image as mpimg
 
@@ -74,6 +76,7 @@ def test_pngs_are_real_images(quick_run):
         assert np.unique(q[:, 0] * 65536 + q[:, 1] * 256 + q[:, 2]).size > 50, name
 
 
+@pytest.mark.slow  # the quick figure run (7 s) they share; the README's test command runs it
 def test_csv_columns_and_branches(quick_run):
     out, _ = quick_run
     for name in FIGURES:
@@ -91,6 +94,7 @@ def test_csv_columns_and_branches(quick_run):
             np.testing.assert_array_equal(lo["pressure"], un["pressure"])
 
 
+@pytest.mark.slow  # the quick figure run (7 s) they share; the README's test command runs it
 def test_fig2_has_the_caption_values(quick_run):
     out, _ = quick_run
     t = read_table(out / "fig2.csv")
@@ -105,6 +109,7 @@ def test_fig2_has_the_caption_values(quick_run):
     assert sorted(set(f3.where(sweep="top_thickness")["top_thickness"].tolist())) == [0.25, 0.375, 0.5, 0.625, 0.75]
 
 
+@pytest.mark.slow  # the quick figure run (7 s) they share; the README's test command runs it
 def test_table_only_reads_the_csvs(quick_run, capsys):
     out, _ = quick_run
     capsys.readouterr()

@@ -273,6 +273,7 @@ sys.exit(os.waitstatus_to_exitcode(status))
 """
 
 
+@pytest.mark.slow  # 3 s: forks a process; the README's test command runs it
 @pytest.mark.skipif(not HAVE_NUMBA, reason="needs numba")
 def test_fork_after_the_parallel_loop_survives():
     """AsyncVectorEnv and multiprocessing fork on Linux: a child forked after a parallel solve must live (GNU OpenMP
