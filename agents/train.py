@@ -282,8 +282,12 @@ def train(hp: dict[str, Any], run_dir: Path, resume: Path | None = None, progres
         write_record(record_path, record)
         if remaining > 0:
             callbacks = _callbacks(hp, run_dir, eval_env, seed + 10_000, deadline, resuming=resume is not None)
-            model.learn(total_timesteps=remaining, callback=callbacks, progress_bar=progress,
-                        reset_num_timesteps=resume is None)
+            # with gradients on, whatever the caller's mode: a Ctrl-C inside an earlier torch.no_grad() of this
+            # process (raised within its __enter__, so its __exit__ never ran) leaves them off, and SB3's update then
+            # fails ("element 0 of tensors does not require grad"); the caller's mode is restored afterwards
+            with torch.enable_grad():
+                model.learn(total_timesteps=remaining, callback=callbacks, progress_bar=progress,
+                            reset_num_timesteps=resume is None)
         _save_model(model, run_dir / "final_model")
         wall = time.monotonic() - t0
         steps = int(model.num_timesteps)

@@ -193,7 +193,8 @@ def train(num_envs: int = 256, device: str = "cpu", minutes: float = 5.0, eval_o
             if train_s >= budget:
                 break
         t = time.perf_counter()
-        trainer.train()
+        with torch.enable_grad():  # whatever the caller's mode (see agents.train: a Ctrl-C can leave it off)
+            trainer.train()
         train_s += time.perf_counter() - t
         steps += num_envs
     wrapped.close()

@@ -182,6 +182,26 @@ def test_ctrl_c_during_train_leaves_a_run_that_resumes_or_nothing(harness, tmp_p
     assert outcomes["resumed"] > 0  # the draw does hit training (else this test proves little)
 
 
+def test_train_learns_after_a_ctrl_c_left_gradients_off(tmp_path, monkeypatch):
+    """A Ctrl-C raised inside ``torch.no_grad().__enter__`` leaves gradients off for the rest of the process (its
+    ``__exit__`` never runs). CI met it: a resumed train in the harness's process failed in SB3's update with
+    "element 0 of tensors does not require grad". ``train`` now learns with gradients on whatever the caller's mode,
+    and leaves the caller's mode as it was."""
+    torch = pytest.importorskip("torch")
+    from pneunet_env.cli import main
+
+    monkeypatch.chdir(tmp_path)
+    before = torch.is_grad_enabled()
+    torch.set_grad_enabled(False)
+    try:
+        rc = main([*TRAIN, "--run-dir", str(tmp_path / "run")])
+        assert not torch.is_grad_enabled()
+    finally:
+        torch.set_grad_enabled(before)
+    assert rc == 0
+    assert json.loads((tmp_path / "run" / "run.json").read_text())["state"] == "finished"
+
+
 def test_ctrl_c_during_search_leaves_the_result_whole_or_absent(harness, tmp_path):
     rng = random.Random(22)
     span = 1.05 * _timed(harness, SEARCH, tmp_path)
