@@ -24,6 +24,9 @@ from pneunet_env.files import atomic_write_json
 
 
 def _rate(model, steps: int) -> tuple[float, float]:
+    from agents.train import no_folder_logger
+
+    model.set_logger(no_folder_logger())  # no empty SB3-<date> folder per learn()
     model.learn(total_timesteps=model.n_steps * model.n_envs)  # warm-up: the first rollout compiles and allocates
     t0 = time.perf_counter()
     model.learn(total_timesteps=steps, reset_num_timesteps=False)

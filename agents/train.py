@@ -123,6 +123,16 @@ def _save_model(model, stem: Path) -> Path:
     return atomic_write_many(outputs)[-1]  # a Ctrl-C is raised once every file is in place
 
 
+def no_folder_logger():
+    """SB3's logger with no outputs. Without one, every ``learn()`` of a model with ``verbose=0`` and no tensorboard
+    folder makes an empty ``$TMPDIR/SB3-<date and time>`` folder (``stable_baselines3.common.logger.configure``) and
+    leaves it there: one a run, thousands a test session. The run's own records are ``run.json``, the monitor CSVs and
+    the evaluations."""
+    from stable_baselines3.common.logger import Logger
+
+    return Logger(folder=None, output_formats=[])
+
+
 def _save_checkpoint(model, folder: Path) -> Path:
     """``folder/model_<N>_steps.zip`` (``N``: the model's timesteps) and, for a ``VecNormalize`` run,
     ``folder/model_vecnormalize_<N>_steps.pkl`` (SB3's CheckpointCallback's names), the statistics first, each file
@@ -270,6 +280,7 @@ def train(hp: dict[str, Any], run_dir: Path, resume: Path | None = None, progres
         else:
             model = algo_cls(hp["policy"], venv, seed=seed, device="cpu", verbose=0,
                              policy_kwargs=_resolve_policy_kwargs(hp["policy_kwargs"]), **algo_kwargs)
+        model.set_logger(no_folder_logger())
         if done == 0 and (resume is None or not (run_dir / "initial_model.zip").is_file()):
             _save_model(model, run_dir / "initial_model")  # the untrained policy: step 0 of the learning curve
         remaining = max(0, hp["n_timesteps"] - done)

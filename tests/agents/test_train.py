@@ -404,6 +404,16 @@ def test_smoke_train_on_sb3_dummy_vec_env(tmp_path):
 
 
 @pytest.mark.filterwarnings("ignore::UserWarning")
+def test_training_leaves_no_sb3_folder_behind(tmp_path, monkeypatch):
+    """SB3 makes a log folder for every learn() of a quiet model (``$SB3_LOGDIR``, else ``$TMPDIR/SB3-<date>``) and
+    leaves it empty; a train run makes none (1,554 had piled up in /tmp on the development machine)."""
+    pytest.importorskip("stable_baselines3")
+    monkeypatch.setenv("SB3_LOGDIR", str(tmp_path / "sb3_log"))
+    assert _smoke(tmp_path / "run", 256, "dummy") == 0
+    assert not (tmp_path / "sb3_log").exists()
+
+
+@pytest.mark.filterwarnings("ignore::UserWarning")
 def test_smoke_sac(tmp_path):
     pytest.importorskip("stable_baselines3")
     assert _smoke(tmp_path / "sac", 1024, "batched" if batched_available() else "dummy", config=SAC) == 0
