@@ -471,9 +471,10 @@ def solve_batch_torch(k, s, p0, p1, kobj, ko, prm, opts, active, *, compile: boo
     :data:`COMPILED_CHECK_EVERY` rounds on a GPU. ``max_rounds``: a fixed budget (unfinished envs are flagged
     ``STATUS_BUDGET``).
 
-    On an H200 at N = 2^22 (random actions) compaction doubled the env-steps/s (4.5 M to 8.9 M): a step takes 8 to
-    128 rounds, the batch's slowest env sets the count, and after 8 rounds 3 % of the envs are live. At N <= 2^20 the
-    two were within 5 %: there a round's cost is its kernel launches, not its envs (docs/performance.md).
+    On an H200 at N = 2^22 (random actions; two runs, each on its own H200 machine) compaction doubled the
+    env-steps/s (4.5 M to 8.9 M): a step takes 8 to 128 rounds, the batch's slowest env sets the count, and after 8
+    rounds 3 % of the envs are live. At N <= 2^20, in one run, the two were within 10 %: there a round's cost is its
+    kernel launches, not its envs (docs/performance.md).
     """
     ops = torch_ops(k.device)
     compact = not compile
