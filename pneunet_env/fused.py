@@ -362,6 +362,7 @@ def _single_for(params_type: type):
         _SINGLES[params_type] = numba.njit(_make_single(0, params_type), nogil=True)
     return _SINGLES[params_type]
 
+
 class SingleStep:
     """:func:`pneunet_env.task.step` for one env with the pneu-net's contact, as one compiled call (numba): the same
     :class:`~pneunet_env.task.Step`, bit for bit, built from the call's numbers (see the module for the work counters,

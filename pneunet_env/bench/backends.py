@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from pneunet_env.bench import machine as bench_machine
 from pneunet_env.files import atomic_write_json, save_figure
 
 __all__ = ["run_sweep", "format_sweep", "plot_sweep"]
@@ -128,11 +129,8 @@ def run_sweep(backends: list[str], devices: list[str], num_envs: list[int], env_
     for r in rows:
         ref = numba.get(r["num_envs"])
         r["speedup_over_numba"] = None if ref is None else r["steps_per_s"] / ref["steps_per_s"]
-    from pneunet_env.bench.machine import load_average
-    from pneunet_env.bench.machine import machine as host
-
-    machine = host()  # after the runs: numba's threading layer is chosen at the first parallel one
-    machine["load_average"] = load_average()
+    machine = bench_machine.machine()  # after the runs: numba's threading layer is chosen at the first parallel one
+    machine["load_average"] = bench_machine.load_average()
     if "torch" in backends:
         import torch
 

@@ -421,7 +421,9 @@ class PneuNetGraspVectorEnv(VectorEnv):
     # ---- the re-entrancy guard ------------------------------------------------------------------------------
     def _enter(self, what: str) -> threading.Lock:
         """The guard's lock, for a ``with`` (its C ``__enter__`` takes it and arms the release at once: a Ctrl-C
-        raised anywhere in the step cannot leave it held); a ``RuntimeError`` if a step or reset already runs."""
+        raised anywhere in the step cannot leave it held); a ``RuntimeError`` if a step or reset already runs. (Two
+        calls that start at the same instant can both pass the check: the second then waits for the first, one at a
+        time still, instead of raising.)"""
         if self._busy.locked():
             raise RuntimeError(f"{type(self).__name__}.{what}() called while another step() or reset() of the same "
                                f"env is running (from another thread, or re-entered): a vector env is stepped by one "
