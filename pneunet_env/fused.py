@@ -37,12 +37,14 @@ import numpy as np
 
 from pneunet_env import task, task_objects
 from pneunet_env.actions import check_action
-from pneunet_env.physics import _jit, batched, contact, mechanics, xp
+from pneunet_env.physics import _jit, batched, contact, free_table, mechanics, xp
 from pneunet_env.physics import solver as _solver
 from pneunet_env.physics._jit import HAVE_NUMBA
+from pneunet_env.physics.free_table import _follow_table
 from pneunet_env.physics.mechanics import Evaluation
 from pneunet_env.physics.solver import (
     STATUS_CONVERGED,
+    STATUS_INACTIVE,
     Continuation,
     Equilibrium,
     _evaluate,
@@ -76,7 +78,8 @@ def _flag_value(flag):
 
 def _make_loop(stamp: int, variant: int):
     # stamp and variant key numba's on-disk cache (see physics.batched._make_loop).
-    def _loop(action, command, eq, kobj, ko, thresholds, state, tp, volume_scale, prm, opts, ev_cache, ev_valid, out):
+    def _loop(action, command, eq, kobj, ko, thresholds, state, tp, volume_scale, prm, opts, table, spacing, ev_cache,
+              ev_valid, out):
         if stamp < 0 or variant < 0:
             return
         # The arrays, by name, one assignment each (see the module: no records of arrays in the parallel loop).
@@ -153,11 +156,17 @@ def _make_loop(stamp: int, variant: int):
                 gn0 = math.hypot(ev0.g_kappa, ev0.g_strain)
                 lmin0 = sym2_eigvals(ev0.h_kk, ev0.h_ks, ev0.h_ss)[0]
                 skip = gn0 <= gtol and lmin0 > 0.0
+            spent = 0  # the work of a try along the free table that could not take the step
+            spent_back = 0
             if skip:
                 r = Continuation(k_in[i], s_in[i], ev0.energy, gn0, lmin0, 0, 0, False, STATUS_CONVERGED,
                                  ev0.volume_change, 0, 0, ev0)
             else:
-                r = _follow_from(k_in[i], s_in[i], p_in[i], p, prm, kobj[i], ko[i], opts, ev0)
+                # a step that touches nothing, along the free actuator's table (an empty table: never)
+                r = _follow_table(k_in[i], s_in[i], p_in[i], p, prm, kobj[i], ko[i], opts, table, spacing)
+                if r.status == STATUS_INACTIVE:
+                    spent, spent_back = r.evaluations, r.backtracks
+                    r = _follow_from(k_in[i], s_in[i], p_in[i], p, prm, kobj[i], ko[i], opts, ev0)
             delta, force, touch = _contact(r.kappa, kobj[i], ko[i])
             conv = r.status >= 0 and r.status <= 1
             o_p[i] = p
@@ -176,8 +185,8 @@ def _make_loop(stamp: int, variant: int):
             o_sub[i] = r.substeps
             o_snap[i] = r.snapped
             o_status[i] = r.status
-            o_evals[i] = n_start + r.evaluations
-            o_backs[i] = r.backtracks
+            o_evals[i] = n_start + spent + r.evaluations
+            o_backs[i] = spent_back + r.backtracks
             failed = not conv
             o_failed[i] = failed
             if not failed:  # the new state's evaluation, for the next step (a failed step keeps the state and its own)
@@ -215,7 +224,7 @@ def _make_loop(stamp: int, variant: int):
     return _loop
 
 
-_SOURCES = (mechanics, contact, _solver, _jit, xp, task, task_objects, sys.modules[__name__])
+_SOURCES = (mechanics, contact, _solver, free_table, _jit, xp, task, task_objects, sys.modules[__name__])
 """The sources the compiled steps are built from (they key numba's disk cache: see ``_jit.njit_cached``)."""
 
 if HAVE_NUMBA:
@@ -253,6 +262,12 @@ def _loop_params(tp: task.TaskParams) -> task.TaskParams:
     return tp._replace(ops=None, **{f: None for f, v in zip(tp._fields, tp, strict=True) if isinstance(v, str)})
 
 
+def _table(params: task.EnvParams) -> tuple[np.ndarray, float]:
+    """The free table's ``(nodes, spacing)`` as the loop takes them (an empty one where the params have none)."""
+    t = free_table.EMPTY if params.free_table is None else params.free_table
+    return t.nodes, float(t.spacing)
+
+
 def fused_step(state: task.EnvState, action: np.ndarray, params: task.EnvParams, parallel: bool | None = None,
                threads: int | None = None, cache: tuple[np.ndarray, np.ndarray] | None = None) -> task.Step:
     """:func:`pneunet_env.task.step` for a batch on the numba back-end, as one compiled loop (see the module).
@@ -280,7 +295,7 @@ def fused_step(state: task.EnvState, action: np.ndarray, params: task.EnvParams,
     ev_cache, ev_valid = new_cache(n) if cache is None else cache
     args = (action, state.command, state.eq, obj.stiffness, obj.curvature, state.thresholds, state.task,
             _loop_params(params.task), 0.0 if vscale is None else float(vscale), params.actuator, params.solver,
-            ev_cache, ev_valid, out)
+            *_table(params), ev_cache, ev_valid, out)
     batched.run_loop(_loop_serial, _loop_parallel, args, n, parallel, threads)
     # the previous state where the solve failed (host arrays: looking whether any did costs no device sync)
     new_eq = task._keep_where(out.failed, state.eq, solve, params.ops) if out.failed.any() else solve
@@ -300,7 +315,7 @@ STATE_SIZE = 28
 
 
 def _make_single(stamp: int, params_type: type = task.TaskParams):
-    def single(x, a, t, prm_t, opts, volume_scale, cache, valid, f, n, b, obs):
+    def single(x, a, t, prm_t, opts, table, spacing, volume_scale, cache, valid, f, n, b, obs):
         # The fused loop at N = 1 (the vector env's own code, compiled for this call), on views of the packed state x
         # (STATE_SIZE floats, updated in place) and of scratch arrays for what it writes (f: floats, n: integers,
         # b: flags, obs: (1, 1 or 2)). t, prm_t: the task's and the actuator's numbers as plain tuples (numba reads a
@@ -319,7 +334,7 @@ def _make_single(stamp: int, params_type: type = task.TaskParams):
                                b[10:11], b[11:12], b[12:13], b[13:14], b[14:15], f[11:12])
         out = Outputs(f[12:13], solve, b[15:16], b[16:17], outcome, obs)
         _loop_serial(np.array([a]), x[0:1], eq, x[17:18], x[18:19], Thresholds(x[21:22], x[22:23], x[23:24]), state,
-                     tp, volume_scale, prm, opts, cache, valid, out)
+                     tp, volume_scale, prm, opts, table, spacing, cache, valid, out)
         e, ts, failed = solve, outcome.state, out.failed[0]
         e_in_contact, e_converged, e_snapped = e.in_contact[0], e.converged[0], e.snapped[0]
         x[0] = out.command[0]
@@ -378,6 +393,7 @@ class SingleStep:
         self._call = _single_for(self._params_type)
         self._prm = tuple(params.actuator)
         self._opts = tuple(params.solver)
+        self._table, self._spacing = _table(params)
         self._volume = params.volume_scale is not None
         self._vs = float(params.volume_scale) if self._volume else 0.0
         self._x = np.zeros(STATE_SIZE)
@@ -413,8 +429,8 @@ class SingleStep:
             self._load(state)
         a = check_action(action)
         (clipped, failed, command), solve, ts, flags = self._call(
-            self._x, a, self._t, self._prm, self._opts, self._vs, self._c, self._valid, self._f, self._n, self._b,
-            self._obs)
+            self._x, a, self._t, self._prm, self._opts, self._table, self._spacing, self._vs, self._c, self._valid,
+            self._f, self._n, self._b, self._obs)
         solve = Equilibrium._make(solve)
         ts = TaskState._make(ts)
         outcome = task.Outcome(ts, *flags)

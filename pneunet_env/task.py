@@ -64,7 +64,9 @@ from pneunet_env.actions import batch_actions, check_action, single_action, upda
 from pneunet_env.config import EnvConfig, TaskConfig
 from pneunet_env.info import FULL_KEYS, INFO_LEVELS, LEAN_KEYS, OBJECT_KEYS, build_info, info_keys, object_info
 from pneunet_env.objects import GraspObject
+from pneunet_env.physics._jit import HAVE_NUMBA
 from pneunet_env.physics.batched import solve_batch
+from pneunet_env.physics.free_table import free_table
 from pneunet_env.physics.solver import (
     ActuatorNumbers,
     Equilibrium,
@@ -364,6 +366,9 @@ class EnvParams(NamedTuple):
         solver: :meth:`SolverOptions.as_tuple <pneunet_env.physics.solver.SolverOptions.as_tuple>`.
         actuator_params, solver_options: the same, as their validated objects.
         volume_scale: the free actuator's volume change at ``p_max`` with ``observe_volume``, else ``None``.
+        free_table: the free actuator's path to ``p_max`` (:class:`~pneunet_env.physics.free_table.FreeTable`) where
+            the solver's ``free_table`` is set and numba is installed, else ``None``: read by the compiled steps
+            only (:mod:`pneunet_env.fused`).
     """
 
     task: TaskParams
@@ -372,14 +377,16 @@ class EnvParams(NamedTuple):
     actuator_params: Any
     solver_options: Any
     volume_scale: float | None
+    free_table: Any = None
 
     @classmethod
     def from_config(cls, config: EnvConfig, ops: Ops = SCALAR) -> EnvParams:
         """The params of ``config``, on the array namespace ``ops`` (:data:`~pneunet_env.physics.xp.SCALAR`: one env;
         :data:`~pneunet_env.physics.xp.NUMPY` or :func:`~pneunet_env.physics.xp.torch_ops`: a batch)."""
         scale = free_volume_change(config) if config.task.observe_volume else None
-        return cls(TaskParams.from_config(config, ops), params_tuple(config.actuator_params), config.solver.as_tuple(),
-                   config.actuator_params, config.solver, scale)
+        prm, opts = params_tuple(config.actuator_params), config.solver.as_tuple()
+        table = free_table(prm, opts, config.pressure_max) if config.solver.free_table and HAVE_NUMBA else None
+        return cls(TaskParams.from_config(config, ops), prm, opts, config.actuator_params, config.solver, scale, table)
 
     @property
     def ops(self) -> Ops:

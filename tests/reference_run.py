@@ -151,18 +151,26 @@ def _vector(out, scenario: str, steps: int, seed: int, n: int = 4, mask_at: int 
     rec.close()
 
 
+CONTINUATION = {"free_table": False}
+"""The compiled steps without the free actuator's table: every solve the continuation's (the scenarios recorded
+before the table; the ``*_free_table`` ones run with it, the default)."""
+
 SCENARIOS: dict[str, Callable[[dict[str, Any]], None]] = {
-    "single": lambda out: _single(out, "single", "PneuNetGrasp-v0", 40, 7),
+    "single": lambda out: _single(out, "single", "PneuNetGrasp-v0", 40, 7, **CONTINUATION),
     "single_paper_volume": lambda out: _single(out, "single_paper_volume", "PneuNetGrasp-Paper-v0", 30, 11,
-                                               observe_volume=True),
-    "single_budget": lambda out: _single(out, "single_budget", "PneuNetGrasp-v0", 24, 17, **BUDGET),
+                                               observe_volume=True, **CONTINUATION),
+    "single_budget": lambda out: _single(out, "single_budget", "PneuNetGrasp-v0", 24, 17, **BUDGET, **CONTINUATION),
+    "single_free_table": lambda out: _single(out, "single_free_table", "PneuNetGrasp-v0", 40, 7),
     "rigid": lambda out: _single(out, "rigid", "RigidGrasp-v0", 30, 5),
-    "vector_numba": lambda out: _vector(out, "vector_numba", 24, 3, backend="numba", mask_at=9),
-    "vector_numba_budget": lambda out: _vector(out, "vector_numba_budget", 16, 23, backend="numba", **BUDGET),
+    "vector_numba": lambda out: _vector(out, "vector_numba", 24, 3, backend="numba", mask_at=9, **CONTINUATION),
+    "vector_numba_free_table": lambda out: _vector(out, "vector_numba_free_table", 24, 3, backend="numba",
+                                                   mask_at=9),
+    "vector_numba_budget": lambda out: _vector(out, "vector_numba_budget", 16, 23, backend="numba", **BUDGET,
+                                               **CONTINUATION),
     "vector_numba_array": lambda out: _vector(out, "vector_numba_array", 16, 23, backend="numba", fused=False,
                                               **BUDGET),
     "vector_numba_next": lambda out: _vector(out, "vector_numba_next", 20, 13, backend="numba",
-                                             autoreset_mode="NextStep", observe_volume=True),
+                                             autoreset_mode="NextStep", observe_volume=True, **CONTINUATION),
     "vector_numpy": lambda out: _vector(out, "vector_numpy", 14, 3, backend="numpy", mask_at=6),
     "vector_torch": lambda out: _vector(out, "vector_torch", 10, 29, backend="torch", mask_at=4, max_substeps=14),
 }

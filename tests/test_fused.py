@@ -1,4 +1,6 @@
-"""The fused numba step is :func:`pneunet_env.task.step`, bit for bit (every field of the returned Step)."""
+"""The fused numba step is :func:`pneunet_env.task.step`, bit for bit (every field of the returned Step), with the
+free table off (``solver.free_table: false``); with it on (the default), within the solver's tolerance
+(``tests/physics/test_free_table.py``)."""
 
 from __future__ import annotations
 
@@ -33,7 +35,7 @@ def _fields(record, prefix=""):
 ])
 def test_fused_step_equals_the_array_step(env_id, overrides):
     n = 256
-    env = gym.make_vec(env_id, num_envs=n, backend="numba", fused=False, **overrides).unwrapped
+    env = gym.make_vec(env_id, num_envs=n, backend="numba", fused=False, free_table=False, **overrides).unwrapped
     env.reset(seed=4)
     state, params = env.state, env._params
     rng = np.random.default_rng(0)
@@ -69,7 +71,7 @@ def test_fused_env_with_its_evaluation_cache_equals_the_array_step_env(mode):
     step makes one energy evaluation fewer wherever its cache held the start's."""
     n = 64
     envs = [gym.make_vec("PneuNetGrasp-v0", num_envs=n, backend="numba", fused=f, autoreset_mode=mode,
-                         info_level="full") for f in (True, False)]
+                         info_level="full", free_table=False) for f in (True, False)]
     outs = [e.reset(seed=2) for e in envs]
     rng = np.random.default_rng(1)
     ended = cached = 0
@@ -114,7 +116,7 @@ def test_an_unchanged_pressure_skips_the_solve_only_at_a_converged_minimum():
     result is the array step's, bit for bit. A start nudged off its minimum (its gradient above the tolerance) is
     solved, as the array step solves it."""
     n = 256
-    env = gym.make_vec("PneuNetGrasp-v0", num_envs=n, backend="numba", fused=False).unwrapped
+    env = gym.make_vec("PneuNetGrasp-v0", num_envs=n, backend="numba", fused=False, free_table=False).unwrapped
     env.reset(seed=3)
     state, params, contact = env.state, env._params, env._contact
     rng = np.random.default_rng(3)
@@ -158,8 +160,9 @@ def test_the_single_envs_compiled_step_is_task_step(overrides):
     from pneunet_env.config import load_config
     from pneunet_env.fused import SingleStep
 
-    config = load_config(None, **overrides)
+    config = load_config(None, free_table=False, **overrides)
     params = task.EnvParams.from_config(config)
+    assert params.free_table is None
     rng = np.random.default_rng(1)
     single = SingleStep(params)
     failures = steps = 0

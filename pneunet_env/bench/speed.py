@@ -263,14 +263,24 @@ def _workload(infos, acc: _Accuracy | None) -> dict[str, Any]:
     return work.result()
 
 
+CONTINUATION = "continuation"
+"""The variant measured beside the default at the largest N, on numba: the env without the free actuator's table
+(``free_table=False``: every step the continuation's), so that one run gives what the table buys."""
+
+
 def bench_vector(num_envs: tuple[int, ...], env_steps: int, min_steps: int, repeats: int, seed: int = 0,
                  backend: str = "auto", acc: _Accuracy | None = None, progress=None,
-                 policies: tuple[str, ...] = POLICIES) -> list[dict[str, Any]]:
+                 policies: tuple[str, ...] = POLICIES, compare: bool = True) -> list[dict[str, Any]]:
     """Env-steps per second of the batched env (per workload in ``policies``) and of CartPole's vector env (random
-    actions) at each N, and each workload's per-env-step solver counts (an untimed pass at the full info level)."""
+    actions) at each N, and each workload's per-env-step solver counts (an untimed pass at the full info level).
+
+    With ``compare`` (and numba), at the largest N the same workloads also run without the free actuator's table
+    (:data:`CONTINUATION`), in the same rounds: ``steps_per_s["PneuNetGrasp-v0 <workload>, continuation"]``,
+    ``ratio_continuation`` and ``workload_continuation``."""
     import gymnasium as gym
 
     import pneunet_env  # noqa: F401
+    from pneunet_env.physics._jit import HAVE_NUMBA
 
     for name in policies:
         if name not in POLICIES:
@@ -285,6 +295,11 @@ def bench_vector(num_envs: tuple[int, ...], env_steps: int, min_steps: int, repe
         pn_actions = rng.uniform(-1.0, 1.0, (steps, n, 1)).astype(np.float32)
         cp_actions = rng.integers(0, 2, (steps, n))
         runs = [(f"PneuNetGrasp-v0 {p}", pn, pn_actions, ramp if p == "ramp" else None) for p in policies]
+        variant = compare and n == max(num_envs) and getattr(pn.unwrapped, "fused", False) and HAVE_NUMBA
+        if variant:
+            pn_c = gym.make_vec("PneuNetGrasp-v0", num_envs=n, backend=backend, free_table=False)
+            runs += [(f"PneuNetGrasp-v0 {p}, {CONTINUATION}", pn_c, pn_actions, ramp if p == "ramp" else None)
+                     for p in policies]
         runs.append(("CartPole-v1", cp, cp_actions, None))
         rates: dict[str, list[float]] = {name: [] for name, *_ in runs}
         for r in range(repeats):
@@ -293,24 +308,29 @@ def bench_vector(num_envs: tuple[int, ...], env_steps: int, min_steps: int, repe
                 obs = env.step(acts[0] if policy is None else policy(obs))[0]  # warm-up (numba starts its threads)
                 dt = _vector_run(env, acts, None, policy, obs)
                 rates[name].append(n * steps / dt)
-        workloads = {}
+        workloads: dict[str, Any] = {}
+        workloads_c: dict[str, Any] = {}
         if acc is not None:  # the same steps again, untimed, with the full info (solver diagnostics and counts),
             # over at least one whole episode (a short timed run sees only the ramp's start)
             w_actions = pn_actions if steps >= WORKLOAD_MIN_STEPS else np.concatenate(
                 [pn_actions, rng.uniform(-1.0, 1.0, (WORKLOAD_MIN_STEPS - steps, n, 1)).astype(np.float32)])
             for p in policies:
-                full = gym.make_vec("PneuNetGrasp-v0", num_envs=n, backend=backend, info_level="full")
-                obs, _ = full.reset(seed=seed)
-                work = _Work(acc)
-                _vector_run(full, w_actions, work, ramp if p == "ramp" else None, obs)
-                full.close()
-                workloads[p] = work.result()
+                for table in ((True, False) if variant else (True,)):
+                    full = gym.make_vec("PneuNetGrasp-v0", num_envs=n, backend=backend, info_level="full",
+                                        free_table=table)
+                    obs, _ = full.reset(seed=seed)
+                    work = _Work(acc)
+                    _vector_run(full, w_actions, work, ramp if p == "ramp" else None, obs)
+                    full.close()
+                    (workloads if table else workloads_c)[p] = work.result()
         state_bytes = pn.unwrapped.state_nbytes()
         pn.close()
         cp.close()
+        if variant:
+            pn_c.close()
         best = {k: max(v) for k, v in rates.items()}
         cart = best["CartPole-v1"]
-        rows.append({
+        row = {
             "num_envs": n,
             "steps": steps,
             "repeats": repeats,
@@ -319,7 +339,11 @@ def bench_vector(num_envs: tuple[int, ...], env_steps: int, min_steps: int, repe
             "time_per_step_s": {k: n / v for k, v in best.items()},
             "state_bytes_per_env": state_bytes / n,
             "workload": workloads,
-        })
+        }
+        if variant:
+            row["ratio_continuation"] = {p: best[f"PneuNetGrasp-v0 {p}, {CONTINUATION}"] / cart for p in policies}
+            row["workload_continuation"] = workloads_c
+        rows.append(row)
         if progress is not None:
             progress.update(1)
     return rows
@@ -507,14 +531,26 @@ def format_table(res: dict[str, Any]) -> str:
         ratios = [f"{q[p]:>12.3f}" if p in q else f"{'-':>12}" for p in ("random", "ramp")]
         lines.append(f"  {row['num_envs']:>6}  {cells[0]}  {cells[1]}  {_fmt_rate(r['CartPole-v1']):>18}  "
                      f"{ratios[0]}  {ratios[1][2:]}")
-    work = res["vector_env"][-1].get("workload") or {}
+    last = res["vector_env"][-1]
+    if "ratio_continuation" in last:
+        r, q, qc = last["steps_per_s"], last["ratio"], last["ratio_continuation"]
+        lines += ["", f"the free actuator's table at N = {last['num_envs']:,}, same rounds: with it (the default) "
+                      f"and without ({CONTINUATION}: free_table=False)"]
+        for p in qc:
+            with_, without = r[f"PneuNetGrasp-v0 {p}"], r[f"PneuNetGrasp-v0 {p}, {CONTINUATION}"]
+            lines.append(f"  {p:<8}{_fmt_rate(with_):>12} ({q[p]:.3f}x)  without {_fmt_rate(without):>12} "
+                         f"({qc[p]:.3f}x)   {with_ / without:.2f}x faster")
+    work = last.get("workload") or {}
     if work:
+        work_c = {f"{p}, no table": w for p, w in (last.get("workload_continuation") or {}).items()}
+        columns = {**work, **work_c}
         keys = [k for k in ("energy_evaluations", "newton_iterations", "substeps", "backtracks", "contact_share",
-                            "unchanged_pressure_share", "episode_end_share") if any(k in w for w in work.values())]
-        lines += ["", f"per env-step at N = {res['vector_env'][-1]['num_envs']:,} (untimed pass, full info)",
-                  f"  {'':<26}" + "".join(f"{p:>10}" for p in work)]
+                            "unchanged_pressure_share", "episode_end_share")
+                if any(k in w for w in columns.values())]
+        lines += ["", f"per env-step at N = {last['num_envs']:,} (untimed pass, full info)",
+                  f"  {'':<26}" + "".join(f"{p:>17}" for p in columns)]
         for k in keys:
-            lines.append(f"  {k:<26}" + "".join(f"{w.get(k, math.nan):>10.3f}" for w in work.values()))
+            lines.append(f"  {k:<26}" + "".join(f"{w.get(k, math.nan):>17.3f}" for w in columns.values()))
     lines.append(f"  (targets at N = 16,384: >= {_fmt_rate(TARGETS['vector_steps_per_s_at_16384_min'])} env-steps/s; "
                  + ", ".join(f"ratio {p} >= {v:g}" for p, v in TARGETS["vector_ratio_at_16384_min"].items()) + ")")
     sv = res["solves"]

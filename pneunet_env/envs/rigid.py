@@ -207,4 +207,4 @@ def jaw_task_params(params: task.EnvParams, jaw_travel_mm: float, jaw_step_mm: f
     pressure: clip the action to ``[-1, 1]``, step by ``jaw_step_mm``, clip to ``[0, jaw_travel_mm]``. No volume is
     observed (``volume_scale=None``). Everything else is ``PneuNetGrasp-v0``'s."""
     jaw_task = params.task._replace(pressure_max=jaw_travel_mm, pressure_step=jaw_step_mm)
-    return params._replace(task=jaw_task, volume_scale=None)
+    return params._replace(task=jaw_task, volume_scale=None, free_table=None)

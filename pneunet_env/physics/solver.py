@@ -156,6 +156,13 @@ class SolverOptions:
         eig_floor: Relative floor on the modified Hessian's eigenvalues.
         max_substeps: Sub-step attempts (accepted, shrunk or a fold) allowed in one call; when they are spent the
             call stops with status :data:`STATUS_BUDGET` (not converged). The env's steps take at most about 50.
+        free_table: Whether the envs' compiled step (numba: the vector env's fused step, the single env's compiled
+            call) takes a step that touches nothing along the free actuator's tabulated path
+            (:mod:`pneunet_env.physics.free_table`): one or two energy evaluations instead of 4 to 11, the state a
+            converged minimum as always, within the tolerance of the continuation's (not bit for bit). ``False``:
+            the continuation for every step, bit for bit the array step's. The continuation's own calls
+            (:func:`solve_equilibrium`, :func:`step_state`, the array step) do not read it; it is not part of
+            :meth:`as_tuple`.
     """
 
     gtol: float = 1e-11
@@ -166,8 +173,12 @@ class SolverOptions:
     max_jump: float = 0.02
     eig_floor: float = 1e-10
     max_substeps: int = 10_000
+    free_table: bool = True
 
     def __post_init__(self) -> None:
+        if type(self.free_table).__name__ not in ("bool", "bool_"):
+            raise ValueError(f"SolverOptions.free_table must be true or false, got {self.free_table!r}")
+        object.__setattr__(self, "free_table", bool(self.free_table))
         for name, (lo, hi, why) in OPTION_BOUNDS.items():
             v = getattr(self, name)
             if name in _INT_OPTIONS:
@@ -191,7 +202,7 @@ class SolverOptions:
             raise ValueError(f"SolverOptions.min_step={self.min_step!r} exceeds max_step={self.max_step!r}")
 
     def as_tuple(self) -> tuple:
-        """The fields in order, as the compiled solver takes them."""
+        """The continuation's numbers in order, as the compiled solver takes them (all fields but ``free_table``)."""
         return (
             float(self.gtol),
             int(self.max_iter),
@@ -326,17 +337,18 @@ sym2_eigvals, sym2_eigvec = make_sym2(math.hypot, math.atan2, math.cos, math.sin
 
 def _make_parts(terms, jit=njit):
     """The solver's pieces over an energy kernel ``terms`` (:func:`pneunet_env.physics.mechanics.make_terms`'s),
-    compiled by ``jit``: ``(evaluate, minimise, follow_ev)``.
+    compiled by ``jit``: ``(evaluate, minimise, follow_ev, follow_from, descend)``.
 
     * ``evaluate(k, s, p, prm, kobj, ko) -> Evaluation``: the kernel on the packed :class:`ActuatorNumbers`;
     * ``minimise(k, s, p, prm, kobj, ko, gtol, max_iter, eig_floor) -> Minimum``: the safeguarded descent at fixed
       pressure;
     * ``follow_ev(k, s, p0, p1, prm, kobj, ko, opts) -> Solve``: the continuation (:data:`step_state`);
     * ``follow_from(k, s, p0, p1, prm, kobj, ko, opts, ev0) -> Continuation``: the same from a start whose
-      evaluation is known.
-
-    Inside, ``descend`` is the Newton descent from a point whose evaluation is already known, returning the
-    evaluation at its result too (a :class:`Descent`), so no point is evaluated twice. ``prm`` is
+      evaluation is known;
+    * ``descend(k, s, p, prm, kobj, ko, gtol, max_iter, eig_floor, ev, k0, s0, radius) -> Descent``: the Newton
+      descent from a point whose evaluation ``ev`` is already known, returning the evaluation at its result too, so
+      no point is evaluated twice (a finite ``radius`` makes it a corrector: see its body). The others are built on
+      it; :mod:`pneunet_env.physics.free_table` uses it too. ``prm`` is
     :func:`params_tuple`, ``opts`` :meth:`SolverOptions.as_tuple`; ``status`` indexes :data:`STATUS_MESSAGES`.
     """
 
@@ -519,10 +531,10 @@ def _make_parts(terms, jit=njit):
         return Solve(r.kappa, r.side_strain, r.energy, r.gradient_norm, r.min_eigenvalue, r.iterations, r.substeps,
                      r.snapped, r.status, r.volume_change, 1 + r.evaluations, r.backtracks)
 
-    return evaluate, minimise, follow_ev, follow_from
+    return evaluate, minimise, follow_ev, follow_from, descend
 
 
-_evaluate, _minimise, _follow_ev, _follow_from = _make_parts(mechanics.make_terms(
+_evaluate, _minimise, _follow_ev, _follow_from, _descend = _make_parts(mechanics.make_terms(
     math.log, math.tan, njit(scalar_where), njit(scalar_max), abs, jit=njit
 )[1])
 # Compiled code (the batched and fused loops) calls the four above. Python calls the entries below: compiled once

@@ -67,6 +67,16 @@ def test_json_holds_every_figure(quick_run):
     for r in res["vector_env"]:  # the work per env-step, over at least one whole episode even in a quick run
         for w in r["workload"].values():
             assert w["env_steps"] >= speed.WORKLOAD_MIN_STEPS * r["num_envs"] and w["energy_evaluations"] > 0
+    last = res["vector_env"][-1]  # the free table's comparison (numba), at the largest N only, in the same rounds
+    if res["backend"] == "numba":
+        assert all("ratio_continuation" not in r for r in res["vector_env"][:-1])
+        for p in speed.POLICIES:
+            without = last["steps_per_s"][f"PneuNetGrasp-v0 {p}, {speed.CONTINUATION}"]
+            assert last["ratio_continuation"][p] == pytest.approx(without / last["steps_per_s"]["CartPole-v1"])
+            # the same steps, the table's work against the continuation's (counts, not times)
+            w, wc = last["workload"][p], last["workload_continuation"][p]
+            assert w["contact_share"] == wc["contact_share"] and w["energy_evaluations"] < wc["energy_evaluations"]
+        assert "the free actuator's table" in quick_run[2]
 
 
 @pytest.mark.slow  # the benchmark's end-to-end quick run (its fixture takes 5-11 s)

@@ -278,7 +278,7 @@ def test_the_work_counters_count_the_kernel_calls():
     counts rejected line-search trials, so loading from rest (where the first Newton steps overshoot) has some."""
     from pneunet_env.physics.solver import DEFAULT_OPTIONS, params_tuple, step_state, step_state_from
 
-    (evaluate, minimise, follow_ev, follow_from), calls = _counting_solver()
+    (evaluate, minimise, follow_ev, follow_from, _), calls = _counting_solver()
     prm, opts = params_tuple(None), DEFAULT_OPTIONS.as_tuple()
     rng = np.random.default_rng(5)
     cases = [(0.0, 0.0, 0.0, 0.9, 0.0, 0.02), (0.0, 0.0, 0.0, 0.70, 1e-4, 0.02)]  # from rest; across the fold

@@ -1,0 +1,250 @@
+"""The free actuator's equilibrium path as a table: a step that touches nothing in one or two energy evaluations.
+
+Where the actuator touches nothing (``kappa~ <= w kappa_obj``), the object's energy is zero and the equilibrium
+depends on the pressure alone: the free actuator's path ``(kappa~(p~), e_s(p~))``. :func:`build_free_table`
+follows that path once with the continuation (:func:`~pneunet_env.physics.solver.step_state`), from rest to the
+env's ``p_max``, and keeps at nodes ``spacing`` apart the state and its tangent ``dx/dp~ = H^{-1} dV/dx`` (the
+continuation's own predictor). Between nodes the path is the cubic Hermite interpolant of these: within 2e-10 of
+the exact path at the default spacing (measured: :func:`interpolate`).
+
+:func:`make_follow_table` builds ``follow_table``, the step along the table: from a free equilibrium on the path to a
+pressure where the path is still free, it evaluates the energy at the table's state at the new pressure and, unless
+that is already a converged minimum (``|grad| <= gtol``, positive-definite Hessian), polishes it with the solver's
+own Newton corrector (:func:`~pneunet_env.physics.solver._make_parts`'s ``descend``, kept within ``max_jump`` of the
+table's state). The result is accepted exactly as the continuation's is: converged, positive definite, free. It is
+the minimum the continuation reaches (the path is the one it follows), to within the tolerance of both: not bit for
+bit. Anything else, and the table is not used: the step is the continuation's.
+
+When the path is used, and why it is the right minimum:
+
+* the table covers the path only as far as it is a plain branch: every node converged, no fold crossed (the
+  continuation's ``snapped``), a positive-definite Hessian, and ``kappa~`` never decreasing. :func:`build_free_table`
+  stops at the first node that is not, so an actuator whose free path folds has a table only up to the fold;
+* the start is a free equilibrium within ``max_jump`` of the path at its pressure (the continuation's own test of
+  one branch), and the path at the new pressure is free. Since ``kappa~`` rises along the path, the whole path
+  between the two pressures is free: the continuation would follow the table's branch, on which the object's energy
+  is zero.
+
+Only the compiled steps use it (numba: :mod:`pneunet_env.fused`), where :class:`SolverOptions.free_table
+<pneunet_env.physics.solver.SolverOptions>` is set (the default).
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from functools import lru_cache
+from typing import NamedTuple
+
+import numpy as np
+
+from pneunet_env.physics import _jit
+from pneunet_env.physics import solver as _solver
+from pneunet_env.physics._jit import python_entry
+from pneunet_env.physics.mechanics import Evaluation
+from pneunet_env.physics.solver import (
+    STATUS_INACTIVE,
+    STATUS_ROUNDOFF,
+    ActuatorNumbers,
+    Continuation,
+    evaluate_state,
+    step_state,
+)
+
+__all__ = ["FreeTable", "SPACING", "EMPTY", "BRANCH_AGREEMENT", "build_free_table", "free_table", "make_follow_table",
+           "interpolate", "follow_table"]
+
+SPACING = 5e-4
+"""Default pressure spacing of the nodes (``p~``; 0.025 kPa with Table 1's ``mu``). The cubic Hermite interpolant's
+error falls as ``spacing^4``: 3.4e-9 at 1e-3, 2e-10 at 5e-4 (the largest over the default path), so that most
+table states are already converged minima (``|grad| <= 1e-11``) and the rest take one Newton step. 2,401 nodes to
+``p~ = 1.2``: 77 KB, built in about 20-40 ms once per actuator and process."""
+
+NODE_FIELDS = ("kappa", "side_strain", "dkappa_dp", "dside_strain_dp")
+"""The columns of :attr:`FreeTable.nodes`."""
+
+
+class FreeTable(NamedTuple):
+    """The free actuator's path at ``p~ = j * spacing``, ``j = 0 .. M - 1`` (dimensionless).
+
+    Attributes:
+        nodes: ``(M, 4)`` float64: ``kappa~``, ``e_s`` and their derivatives in ``p~`` at each node
+            (:data:`NODE_FIELDS`); ``M = 0`` for no table.
+        spacing: the nodes' pressure spacing ``dp~``.
+    """
+
+    nodes: np.ndarray
+    spacing: float
+
+    def __eq__(self, other: object) -> bool:
+        """Equal nodes (element by element) and spacing."""
+        return isinstance(other, FreeTable) and self.spacing == other.spacing and np.array_equal(self.nodes,
+                                                                                                   other.nodes)
+
+    def __ne__(self, other: object) -> bool:
+        return not self == other
+
+    __hash__ = None  # type: ignore[assignment]  (its array is not hashable)
+
+    @property
+    def pressure_max(self) -> float:
+        """The highest pressure the table covers (``-inf`` for an empty one)."""
+        return (len(self.nodes) - 1) * self.spacing if len(self.nodes) >= 2 else -math.inf
+
+
+EMPTY = FreeTable(np.zeros((0, len(NODE_FIELDS))), SPACING)
+"""No table (every step is the continuation's)."""
+
+BRANCH_AGREEMENT = 1e-8
+"""Loading and unloading must agree to within this at every node of a table (``max(|d kappa~|, |d e_s|)``). The
+same branch, followed both ways, agrees to the continuation's own accuracy (about 1e-11: 2.7e-12 on Table 1's
+actuator); two stable branches differ by their separation (a fold's jump)."""
+
+_FREE_CURVATURE = 1.0
+"""The object curvature passed to the kernel while tabulating: with ``k~_obj = 0`` the object's energy is zero
+whatever it is (any value inside the kernel's domain)."""
+
+
+def build_free_table(prm: ActuatorNumbers, opts: tuple, pressure_max: float, spacing: float = SPACING) -> FreeTable:
+    """The free actuator's path from rest to ``pressure_max``, as far as it is one plain branch (see the module).
+
+    It is followed with the continuation from node to node, loading; it ends at the first node that is not converged,
+    is reached across a fold (``snapped``), has a Hessian that is not positive definite or a lower ``kappa~`` than the
+    node before. Then it is followed back, unloading from its last node, and it ends below the first node (from rest)
+    where the two disagree by more than :data:`BRANCH_AGREEMENT`: where they differ, the path has two stable branches
+    (a hysteresis loop, whose folds may be too weak to flag), and a table would pick one of them for the
+    continuation.
+
+    Args:
+        prm: :func:`~pneunet_env.physics.solver.params_tuple` of the actuator.
+        opts: :meth:`SolverOptions.as_tuple <pneunet_env.physics.solver.SolverOptions.as_tuple>`.
+        pressure_max: the highest pressure ``p~`` needed (the env's ``p_max``).
+        spacing: the nodes' spacing in ``p~`` (> 0).
+    """
+    if not (isinstance(spacing, float) and 0.0 < spacing <= 0.1):
+        raise ValueError(f"spacing must be a float in (0, 0.1], got {spacing!r}")
+    if not (isinstance(pressure_max, float) and math.isfinite(pressure_max) and pressure_max > 0.0):
+        raise ValueError(f"pressure_max must be a finite float > 0, got {pressure_max!r}")
+    m = int(math.ceil(pressure_max / spacing - 1e-9)) + 1
+    rows = []
+    k = s = 0.0
+    for j in range(m):
+        p = j * spacing
+        if j:
+            r = step_state(k, s, (j - 1) * spacing, p, prm, 0.0, _FREE_CURVATURE, opts)
+            if r.status > STATUS_ROUNDOFF or r.snapped or r.kappa < k:
+                break  # not converged, a fold, or kappa~ falling: the table ends at the last plain node
+            k, s = r.kappa, r.side_strain
+        e = evaluate_state(k, s, p, prm, 0.0, _FREE_CURVATURE)
+        det = e.h_kk * e.h_ss - e.h_ks * e.h_ks
+        if not (e.ok and e.h_kk > 0.0 and det > 0.0):
+            break
+        rows.append((k, s, (e.h_ss * e.v_kappa - e.h_ks * e.v_strain) / det,
+                     (e.h_kk * e.v_strain - e.h_ks * e.v_kappa) / det))
+    end = len(rows)
+    for j in range(len(rows) - 2, -1, -1):  # unloading, from the last node
+        r = step_state(k, s, (j + 1) * spacing, j * spacing, prm, 0.0, _FREE_CURVATURE, opts)
+        if r.status > STATUS_ROUNDOFF:
+            end = j + 1
+            break
+        k, s = r.kappa, r.side_strain
+        if max(abs(k - rows[j][0]), abs(s - rows[j][1])) > BRANCH_AGREEMENT:
+            end = j  # two branches at this node: the table ends below it
+    if end < 2:
+        return EMPTY
+    return FreeTable(np.array(rows[:end], dtype=np.float64), spacing)
+
+
+@lru_cache(maxsize=16)
+def free_table(prm: ActuatorNumbers, opts: tuple, pressure_max: float) -> FreeTable:
+    """:func:`build_free_table` at the default spacing, built once per actuator, options and range in a process (the
+    envs share it; its array is read-only)."""
+    table = build_free_table(prm, opts, float(pressure_max))
+    table.nodes.setflags(write=False)
+    return table
+
+
+def make_follow_table(evaluate, descend, jit):
+    """``(interpolate, follow_table)`` over the solver's ``evaluate`` and ``descend``
+    (:func:`~pneunet_env.physics.solver._make_parts`), compiled by ``jit``.
+
+    * ``interpolate(nodes, spacing, p) -> (kappa~, e_s)``: the table's path at ``p`` (cubic Hermite; ``p`` within
+      the table);
+    * ``follow_table(k, s, p0, p1, prm, kobj, ko, opts, nodes, spacing) -> Continuation``: the step from the free
+      equilibrium ``(k, s)`` at ``p0`` to ``p1`` along the table (see the module), with ``substeps = 1``; where the
+      table cannot take it, status :data:`~pneunet_env.physics.solver.STATUS_INACTIVE` with the work it spent
+      (``evaluations``, ``backtracks``), and the caller runs the continuation.
+    """
+
+    @jit
+    def interpolate(nodes, spacing, p):
+        x = p / spacing
+        j = min(int(x), nodes.shape[0] - 2)
+        t = x - j
+        t2 = t * t
+        t3 = t2 * t
+        h00 = 2.0 * t3 - 3.0 * t2 + 1.0
+        h01 = 3.0 * t2 - 2.0 * t3
+        h10 = (t3 - 2.0 * t2 + t) * spacing
+        h11 = (t3 - t2) * spacing
+        k = h00 * nodes[j, 0] + h01 * nodes[j + 1, 0] + h10 * nodes[j, 2] + h11 * nodes[j + 1, 2]
+        s = h00 * nodes[j, 1] + h01 * nodes[j + 1, 1] + h10 * nodes[j, 3] + h11 * nodes[j + 1, 3]
+        return k, s
+
+    @jit
+    def not_taken(k, s, evaluations, backtracks):
+        nan = math.nan
+        return Continuation(k, s, nan, nan, nan, 0, 0, False, STATUS_INACTIVE, nan, evaluations, backtracks,
+                            Evaluation(False, nan, nan, nan, nan, nan, nan, nan, nan, nan))
+
+    @jit
+    def follow_table(k, s, p0, p1, prm, kobj, ko, opts, nodes, spacing):
+        gtol, _, corr_iter, _, _, max_jump, eig_floor, _ = opts
+        top = (nodes.shape[0] - 1) * spacing
+        if nodes.shape[0] < 2 or not (k < ko and p0 <= top and p1 <= top):
+            return not_taken(k, s, 0, 0)
+        k0, s0 = interpolate(nodes, spacing, p0)
+        if max(abs(k - k0), abs(s - s0)) > max_jump:
+            return not_taken(k, s, 0, 0)  # not on the table's branch
+        k1, s1 = interpolate(nodes, spacing, p1)
+        k1 = max(k1, 0.0)  # the domain's edge, as the descent projects (the rest state lies on it)
+        if not k1 < ko:
+            return not_taken(k, s, 0, 0)  # the path touches the object by p1
+        ev = evaluate(k1, s1, p1, prm, kobj, ko)
+        r = descend(k1, s1, p1, prm, kobj, ko, gtol, corr_iter, eig_floor, ev, k1, s1, max_jump)
+        if r.status <= STATUS_ROUNDOFF and r.kappa < ko:
+            return Continuation(r.kappa, r.side_strain, r.energy, r.gradient_norm, r.min_eigenvalue, r.iterations, 1,
+                                False, r.status, r.evaluation.volume_change, 1 + r.evaluations, r.backtracks,
+                                r.evaluation)
+        return not_taken(k, s, 1 + r.evaluations, r.backtracks)
+
+    return interpolate, follow_table
+
+
+_interpolate, _follow_table = make_follow_table(_solver._evaluate, _solver._descend, _jit.njit)
+# the compiled pair the envs' compiled step calls (plain Python without numba); Python calls the entries below
+
+
+def _make_entries(stamp: int):
+    def plain_interpolate(nodes, spacing, p):
+        if stamp < 0:  # the stamp keys the disk cache (see _jit.njit_cached)
+            raise AssertionError
+        return _interpolate(nodes, spacing, p)
+
+    def plain_follow_table(k, s, p0, p1, prm, kobj, ko, opts, nodes, spacing):
+        if stamp < 0:
+            raise AssertionError
+        r = _follow_table(k, s, p0, p1, prm, kobj, ko, opts, nodes, spacing)
+        return _solver._solve_numbers(r) + (_solver._evaluation_numbers(r.evaluation),)
+
+    return {"interpolate": plain_interpolate, "follow_table": plain_follow_table}
+
+
+_ENTRY_SOURCES = (_solver.mechanics, _solver.contact, _solver.xp, _jit, _solver, sys.modules[__name__])
+
+interpolate = _jit.njit_cached(lambda stamp: _make_entries(stamp)["interpolate"], _ENTRY_SOURCES)
+"""``interpolate(nodes, spacing, p) -> (kappa~, e_s)``: the table's path at ``p`` (cubic Hermite), from Python."""
+follow_table = python_entry(_jit.njit_cached(lambda stamp: _make_entries(stamp)["follow_table"], _ENTRY_SOURCES),
+                            Continuation, {"evaluation": Evaluation})
+"""``follow_table(kappa~, e_s, p0, p1, prm, k~_obj, w kappa_obj, opts, nodes, spacing) -> Continuation``: a step
+along the table (see :func:`make_follow_table`), from Python."""
