@@ -56,9 +56,9 @@ def take(record, idx):
 
 
 def fresh_arrays(state, earlier) -> frozenset[int]:
-    """The ids of ``state``'s arrays that ``earlier`` (a state handed out before) does not hold, each held once in
-    ``state``: what :func:`autoreset` may write in place."""
-    held = {id(a) for a in leaves(earlier)}
+    """The ids of ``state``'s arrays that ``earlier`` (a state handed out before; ``None``: none was) does not hold,
+    each held once in ``state``: what :func:`autoreset` may write in place."""
+    held = set() if earlier is None else {id(a) for a in leaves(earlier)}
     seen: dict[int, int] = {}
     for a in leaves(state):
         seen[id(a)] = seen.get(id(a), 0) + 1

@@ -382,6 +382,10 @@ class PneuNetGraspVectorEnv(VectorEnv):
         self._streams = PCG64Streams(n)
         self._seeded = False
         self._state: task.EnvState | None = None
+        # the last state handed out (the state property), while the env's state still shares arrays with it (the
+        # objects', the thresholds': a step passes them on): an autoreset copies those before writing, and writes
+        # the others in place; after it, nothing is shared (None)
+        self._handed_out: task.EnvState | None = None
         self._obs: np.ndarray | None = None
         self._pending = self._xp.full(n, False, "bool")  # NEXT_STEP: sub-envs to reset on the next step
         self._warned = False
@@ -434,6 +438,7 @@ class PneuNetGraspVectorEnv(VectorEnv):
     @property
     def state(self) -> task.EnvState | None:
         """The whole state (:class:`pneunet_env.task.EnvState` of ``(N,)`` arrays; never changed in place)."""
+        self._handed_out = self._state  # an autoreset must not write into the arrays someone may hold
         return self._state
 
     @property
@@ -515,6 +520,7 @@ class PneuNetGraspVectorEnv(VectorEnv):
             obs[idx] = self._observe(self._state)[idx]
             info = self._info(self._state, None, mask)
             info = {k: self._masked(mask, v) if k[0] != "_" else v for k, v in info.items()}
+        self._handed_out = None  # a state of fresh arrays
         self._obs = _copy(obs)
         return obs, info
 
@@ -620,7 +626,6 @@ class PneuNetGraspVectorEnv(VectorEnv):
         if self.autoreset_mode is AutoresetMode.NEXT_STEP:
             return self._step_next(res, obs, reward, terminated, truncated)
         info = self._info(state, res, None)
-        earlier = self._state
         self._state = state
         done = terminated | truncated
         if not done.any():
@@ -640,7 +645,8 @@ class PneuNetGraspVectorEnv(VectorEnv):
         else:  # a tensor (N, obs_dim), masked by _final_obs
             final_obs = xp.where(done[:, None], obs, 0.0)
         self._state = task.autoreset(state, idx, self._draw(host_idx, {}), self._params, self._contact,
-                                     own=task.fresh_arrays(state, earlier))
+                                     own=task.fresh_arrays(state, self._handed_out))
+        self._handed_out = None
         self._forget(idx)
         obs[idx] = self._observe_rows(self._state, idx)
         self._merge_reset_info(info, done, host_idx, idx)
@@ -663,7 +669,8 @@ class PneuNetGraspVectorEnv(VectorEnv):
             host_idx = np.flatnonzero(to_host(pending))
             idx = self._to_device(host_idx)
             state = task.autoreset(state, idx, self._draw(host_idx, {}), self._params, self._contact,
-                                   own=task.fresh_arrays(state, self._state))
+                                   own=task.fresh_arrays(state, self._handed_out))
+            self._handed_out = None
             self._forget(idx)
             obs[idx] = self._observe_rows(state, idx)
             reward = self._xp.where(pending, 0.0, reward)

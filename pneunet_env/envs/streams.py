@@ -9,9 +9,12 @@ Python loop over the streams); :func:`seed_words` turns seeds into the words it 
 from __future__ import annotations
 
 import operator
+import sys
 from collections.abc import Sequence
 
 import numpy as np
+
+from pneunet_env.physics import _jit
 
 __all__ = ["PCG64Streams", "seed_words"]
 
@@ -118,9 +121,14 @@ class PCG64Streams:
         self.hi[idx], self.lo[idx], self.inc_hi[idx], self.inc_lo[idx] = hi, lo, ihi, ilo
 
     def random(self, idx: np.ndarray, count: int) -> np.ndarray:
-        """``count`` doubles in ``[0, 1)`` from each stream ``idx``: shape ``(count, len(idx))``; advances them."""
-        hi, lo, ihi, ilo = self.hi[idx], self.lo[idx], self.inc_hi[idx], self.inc_lo[idx]
+        """``count`` doubles in ``[0, 1)`` from each stream ``idx`` (distinct indices): shape ``(count, len(idx))``;
+        advances them. With numba, one compiled pass (:data:`_draw`, the same integer arithmetic: the same doubles,
+        bit for bit); without, array operations."""
         out = np.empty((count, len(idx)))
+        if _draw is not None:
+            _draw(self.hi, self.lo, self.inc_hi, self.inc_lo, np.asarray(idx, dtype=np.int64), out)
+            return out
+        hi, lo, ihi, ilo = self.hi[idx], self.lo[idx], self.inc_hi[idx], self.inc_lo[idx]
         with np.errstate(over="ignore"):
             for j in range(count):
                 hi, lo = _lcg_step(hi, lo, ihi, ilo)
@@ -142,6 +150,41 @@ class PCG64Streams:
             "uinteger": 0,
         }
         return np.random.Generator(bg)
+
+
+def _make_draw(stamp: int):
+    one, zero, s11, s58, s63, s64 = (np.uint64(v) for v in (1, 0, 11, 58, 63, 64))
+    mult_hi, mult_lo, m32, s32 = _MULT_HI, _MULT_LO, _M32, _S32
+
+    def draw(hi_a, lo_a, ihi_a, ilo_a, idx, out):
+        # PCG64Streams.random's arithmetic, stream by stream: the LCG step (_lcg_step, with _mulhi64's limbs) and the
+        # XSL-RR output, in uint64 (wrapping, as numpy's); writes out[j, c] for stream idx[c] and advances it.
+        if stamp < 0:  # the stamp keys the disk cache (see _jit.njit_cached)
+            raise AssertionError
+        for c in range(idx.shape[0]):
+            i = idx[c]
+            hi, lo, ihi, ilo = hi_a[i], lo_a[i], ihi_a[i], ilo_a[i]
+            for j in range(out.shape[0]):
+                x0, x1 = lo & m32, lo >> s32
+                y0, y1 = mult_lo & m32, mult_lo >> s32
+                p00, p01, p10, p11 = x0 * y0, x0 * y1, x1 * y0, x1 * y1
+                mid = (p00 >> s32) + (p01 & m32) + (p10 & m32)
+                nhi = (p11 + (p01 >> s32) + (p10 >> s32) + (mid >> s32)) + lo * mult_hi + hi * mult_lo
+                nlo = lo * mult_lo
+                lo = nlo + ilo
+                hi = nhi + ihi + (one if lo < nlo else zero)
+                x = hi ^ lo
+                rot = hi >> s58
+                u = (x >> rot) | (x << ((s64 - rot) & s63))
+                out[j, c] = np.float64(u >> s11) * (1.0 / 9007199254740992.0)
+            hi_a[i] = hi
+            lo_a[i] = lo
+
+    return draw
+
+
+_draw = _jit.njit_cached(_make_draw, (sys.modules[__name__],)) if _jit.HAVE_NUMBA else None
+"""The compiled draw (numba), or ``None``: then :meth:`PCG64Streams.random` uses array operations."""
 
 
 def seed_words(seeds: Sequence[int] | int, n: int) -> np.ndarray:

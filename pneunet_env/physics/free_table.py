@@ -4,7 +4,7 @@ Where the actuator touches nothing (``kappa~ <= w kappa_obj``), the object's ene
 depends on the pressure alone: the free actuator's path ``(kappa~(p~), e_s(p~))``. :func:`build_free_table`
 follows that path once with the continuation (:func:`~pneunet_env.physics.solver.step_state`), from rest to the
 env's ``p_max``, and keeps at nodes ``spacing`` apart the state and its tangent ``dx/dp~ = H^{-1} dV/dx`` (the
-continuation's own predictor). Between nodes the path is the cubic Hermite interpolant of these: within 2e-10 of
+continuation's own predictor). Between nodes the path is the cubic Hermite interpolant of these: within 2.2e-10 of
 the exact path at the default spacing (measured: :func:`interpolate`).
 
 :func:`make_follow_table` builds ``follow_table``, the step along the table: from a free equilibrium on the path to a
@@ -17,9 +17,10 @@ bit. Anything else, and the table is not used: the step is the continuation's.
 
 When the path is used, and why it is the right minimum:
 
-* the table covers the path only as far as it is a plain branch: every node converged, no fold crossed (the
-  continuation's ``snapped``), a positive-definite Hessian, and ``kappa~`` never decreasing. :func:`build_free_table`
-  stops at the first node that is not, so an actuator whose free path folds has a table only up to the fold;
+* the table covers the path only as far as it is one plain branch: every node converged, no fold crossed (the
+  continuation's ``snapped``), a positive-definite Hessian, ``kappa~`` never decreasing, and loading and unloading
+  agreeing (:data:`BRANCH_AGREEMENT`: no hysteresis, even with folds too weak to flag). :func:`build_free_table`
+  ends it below the first node that is not, so an actuator whose free path folds has a table only below the fold;
 * the start is a free equilibrium within ``max_jump`` of the path at its pressure (the continuation's own test of
   one branch), and the path at the new pressure is free. Since ``kappa~`` rises along the path, the whole path
   between the two pressures is free: the continuation would follow the table's branch, on which the object's energy
@@ -56,9 +57,23 @@ __all__ = ["FreeTable", "SPACING", "EMPTY", "BRANCH_AGREEMENT", "build_free_tabl
 
 SPACING = 5e-4
 """Default pressure spacing of the nodes (``p~``; 0.025 kPa with Table 1's ``mu``). The cubic Hermite interpolant's
-error falls as ``spacing^4``: 3.4e-9 at 1e-3, 2e-10 at 5e-4 (the largest over the default path), so that most
-table states are already converged minima (``|grad| <= 1e-11``) and the rest take one Newton step. 2,401 nodes to
-``p~ = 1.2``: 77 KB, built in about 20-40 ms once per actuator and process."""
+error falls as ``spacing^4``: 3.4e-9 at 1e-3, 2.2e-10 at 5e-4 (the largest over the default path, at 20,000
+pressures), so that most table states (92 % of 3,000 random free steps) are already converged minima
+(``|grad| <= 1e-11``) and the rest take one Newton step. 2,401 nodes to ``p~ = 1.2``: 77 KB, built (loading and
+unloading) in about 40 ms, once per actuator, options and range in a process."""
+
+MAX_NODES = 20_001
+"""The most nodes a table holds: ``p~`` up to 10 at the default spacing (8.3 times the default env's ``p~_max = 1.2``;
+640 KB, built in about 0.4 s). A higher ``p_max`` (a config with a tiny shear modulus ``mu`` makes ``p~_max`` huge)
+is tabulated to there; steps above it are the continuation's. Along the Gent-stiffened top of the free path the
+continuation converges at every pressure, so without a bound the table would grow with ``p_max``."""
+
+NODE_SUBSTEPS = 16
+"""The sub-step budget of the continuation from one node to the next while tabulating (the solver's
+``max_substeps`` for these calls, if lower): a node that needs more ends the table there. On Table 1's actuator and
+the designs tried every node took 1 sub-step (4 near a fold); a path that needs more over ``dp~ = 5e-4`` is too steep
+for a table to help, and a degenerate actuator (the fuzz test's ``mu = 1e-12`` kPa: 37,000 evaluations a node) is
+not tabulated for minutes."""
 
 NODE_FIELDS = ("kappa", "side_strain", "dkappa_dp", "dside_strain_dp")
 """The columns of :attr:`FreeTable.nodes`."""
@@ -97,7 +112,7 @@ EMPTY = FreeTable(np.zeros((0, len(NODE_FIELDS))), SPACING)
 
 BRANCH_AGREEMENT = 1e-8
 """Loading and unloading must agree to within this at every node of a table (``max(|d kappa~|, |d e_s|)``). The
-same branch, followed both ways, agrees to the continuation's own accuracy (about 1e-11: 2.7e-12 on Table 1's
+same branch, followed both ways, agrees to the continuation's own accuracy (about 1e-11: 6.9e-12 on Table 1's
 actuator); two stable branches differ by their separation (a fold's jump)."""
 
 _FREE_CURVATURE = 1.0
@@ -108,9 +123,10 @@ whatever it is (any value inside the kernel's domain)."""
 def build_free_table(prm: ActuatorNumbers, opts: tuple, pressure_max: float, spacing: float = SPACING) -> FreeTable:
     """The free actuator's path from rest to ``pressure_max``, as far as it is one plain branch (see the module).
 
-    It is followed with the continuation from node to node, loading; it ends at the first node that is not converged,
-    is reached across a fold (``snapped``), has a Hessian that is not positive definite or a lower ``kappa~`` than the
-    node before. Then it is followed back, unloading from its last node, and it ends below the first node (from rest)
+    It is followed with the continuation from node to node, loading, over at most :data:`MAX_NODES` nodes; it ends at
+    the first node that is not converged (within :data:`NODE_SUBSTEPS` sub-steps), is reached across a fold
+    (``snapped``), has a Hessian that is not positive definite or a lower ``kappa~`` than the node before. Then it is
+    followed back, unloading from its last node, and it ends below the first node (from rest)
     where the two disagree by more than :data:`BRANCH_AGREEMENT`: where they differ, the path has two stable branches
     (a hysteresis loop, whose folds may be too weak to flag), and a table would pick one of them for the
     continuation.
@@ -125,7 +141,8 @@ def build_free_table(prm: ActuatorNumbers, opts: tuple, pressure_max: float, spa
         raise ValueError(f"spacing must be a float in (0, 0.1], got {spacing!r}")
     if not (isinstance(pressure_max, float) and math.isfinite(pressure_max) and pressure_max > 0.0):
         raise ValueError(f"pressure_max must be a finite float > 0, got {pressure_max!r}")
-    m = int(math.ceil(pressure_max / spacing - 1e-9)) + 1
+    m = min(int(math.ceil(min(pressure_max / spacing, MAX_NODES) - 1e-9)) + 1, MAX_NODES)
+    opts = tuple(opts[:7]) + (min(int(opts[7]), NODE_SUBSTEPS),)  # SolverOptions.as_tuple(): max_substeps last
     rows = []
     k = s = 0.0
     for j in range(m):

@@ -99,7 +99,9 @@ def test_torch_vector_env_agrees_with_numba_through_autoresets(env_id, mode, dev
     n, steps = 24, 60
     # the paper's ring keeps going when damaged, so that its grasps reach the fold
     kw = {"terminate_on_damage": False} if "Paper" in env_id else {}
-    ref = gym.make_vec(env_id, num_envs=n, backend=REFERENCE, info_level="full", autoreset_mode=mode, **kw)
+    # the reference without the free table (numba's compiled step only): the same continuation as torch's
+    ref = gym.make_vec(env_id, num_envs=n, backend=REFERENCE, info_level="full", autoreset_mode=mode, free_table=False,
+                       **kw)
     tor = gym.make_vec(env_id, num_envs=n, backend="torch", device=device, info_level="full", autoreset_mode=mode,
                        **kw)
     # the paper's ring: the first episodes pinned across its snap-through window (k~ 5e-5 .. 1e-3)

@@ -135,6 +135,16 @@ def test_a_free_path_that_folds_is_tabulated_only_below_its_fold():
     assert ft.build_free_table(PRM, OPTS, 1.2) == ft.free_table(PRM, OPTS, P_MAX)
 
 
+def test_a_huge_pressure_range_is_tabulated_only_to_max_nodes():
+    """A config with a tiny shear modulus makes ``p~_max`` huge; the Gent-stiffened free path converges at every
+    pressure, so the table is bounded (the fuzz test found a build that grew with ``p_max``)."""
+    t = ft.build_free_table(PRM, OPTS, 6e13)
+    assert len(t.nodes) == ft.MAX_NODES and t.pressure_max == pytest.approx((ft.MAX_NODES - 1) * ft.SPACING)
+    k, s = t.nodes[-1, :2]
+    r = ft.follow_table(k, s, t.pressure_max, t.pressure_max * 2, PRM, 0.0, 2.0, OPTS, t.nodes, t.spacing)
+    assert r.status == STATUS_INACTIVE  # above the table: the continuation's
+
+
 def test_bad_arguments_and_the_option():
     with pytest.raises(ValueError, match="spacing"):
         ft.build_free_table(PRM, OPTS, 1.2, spacing=0)
