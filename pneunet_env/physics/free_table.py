@@ -48,8 +48,6 @@ from pneunet_env.physics.solver import (
     STATUS_ROUNDOFF,
     ActuatorNumbers,
     Continuation,
-    evaluate_state,
-    step_state,
 )
 
 __all__ = ["FreeTable", "SPACING", "EMPTY", "BRANCH_AGREEMENT", "build_free_table", "free_table", "make_follow_table",
@@ -60,11 +58,11 @@ SPACING = 5e-4
 error falls as ``spacing^4``: 3.4e-9 at 1e-3, 2.2e-10 at 5e-4 (the largest over the default path, at 20,000
 pressures), so that most table states (92 % of 3,000 random free steps) are already converged minima
 (``|grad| <= 1e-11``) and the rest take one Newton step. 2,401 nodes to ``p~ = 1.2``: 77 KB, built (loading and
-unloading) in about 40 ms, once per actuator, options and range in a process."""
+unloading, compiled) in about 3 ms, once per actuator, options and range in a process."""
 
 MAX_NODES = 20_001
 """The most nodes a table holds: ``p~`` up to 10 at the default spacing (8.3 times the default env's ``p~_max = 1.2``;
-640 KB, built in about 0.4 s). A higher ``p_max`` (a config with a tiny shear modulus ``mu`` makes ``p~_max`` huge)
+640 KB, built in about 20 ms). A higher ``p_max`` (a config with a tiny shear modulus ``mu`` makes ``p~_max`` huge)
 is tabulated to there; steps above it are the continuation's. Along the Gent-stiffened top of the free path the
 continuation converges at every pressure, so without a bound the table would grow with ``p_max``."""
 
@@ -143,33 +141,48 @@ def build_free_table(prm: ActuatorNumbers, opts: tuple, pressure_max: float, spa
         raise ValueError(f"pressure_max must be a finite float > 0, got {pressure_max!r}")
     m = min(int(math.ceil(min(pressure_max / spacing, MAX_NODES) - 1e-9)) + 1, MAX_NODES)
     opts = tuple(opts[:7]) + (min(int(opts[7]), NODE_SUBSTEPS),)  # SolverOptions.as_tuple(): max_substeps last
-    rows = []
-    k = s = 0.0
-    for j in range(m):
-        p = j * spacing
-        if j:
-            r = step_state(k, s, (j - 1) * spacing, p, prm, 0.0, _FREE_CURVATURE, opts)
-            if r.status > STATUS_ROUNDOFF or r.snapped or r.kappa < k:
-                break  # not converged, a fold, or kappa~ falling: the table ends at the last plain node
-            k, s = r.kappa, r.side_strain
-        e = evaluate_state(k, s, p, prm, 0.0, _FREE_CURVATURE)
-        det = e.h_kk * e.h_ss - e.h_ks * e.h_ks
-        if not (e.ok and e.h_kk > 0.0 and det > 0.0):
-            break
-        rows.append((k, s, (e.h_ss * e.v_kappa - e.h_ks * e.v_strain) / det,
-                     (e.h_kk * e.v_strain - e.h_ks * e.v_kappa) / det))
-    end = len(rows)
-    for j in range(len(rows) - 2, -1, -1):  # unloading, from the last node
-        r = step_state(k, s, (j + 1) * spacing, j * spacing, prm, 0.0, _FREE_CURVATURE, opts)
-        if r.status > STATUS_ROUNDOFF:
-            end = j + 1
-            break
-        k, s = r.kappa, r.side_strain
-        if max(abs(k - rows[j][0]), abs(s - rows[j][1])) > BRANCH_AGREEMENT:
-            end = j  # two branches at this node: the table ends below it
+    nodes = np.empty((m, len(NODE_FIELDS)))
+    end = _tabulate(prm, opts, spacing, BRANCH_AGREEMENT, nodes)
     if end < 2:
         return EMPTY
-    return FreeTable(np.array(rows[:end], dtype=np.float64), spacing)
+    return FreeTable(nodes[:end].copy(), spacing)
+
+
+def _make_tabulate(stamp: int):
+    def tabulate(prm, opts, spacing, agreement, nodes):
+        # build_free_table's two passes, compiled (the solver's own continuation and kernel); fills nodes' rows and
+        # returns how many of them the table keeps
+        if stamp < 0:  # the stamp keys the disk cache (see _jit.njit_cached)
+            raise AssertionError
+        k = s = 0.0
+        rows = 0
+        for j in range(nodes.shape[0]):
+            p = j * spacing
+            if j > 0:
+                r = _solver._follow_ev(k, s, (j - 1) * spacing, p, prm, 0.0, _FREE_CURVATURE, opts)
+                if r.status > STATUS_ROUNDOFF or r.snapped or r.kappa < k:
+                    break  # not converged, a fold, or kappa~ falling: the table ends at the last plain node
+                k, s = r.kappa, r.side_strain
+            e = _solver._evaluate(k, s, p, prm, 0.0, _FREE_CURVATURE)
+            det = e.h_kk * e.h_ss - e.h_ks * e.h_ks
+            if not (e.ok and e.h_kk > 0.0 and det > 0.0):
+                break
+            nodes[j, 0], nodes[j, 1] = k, s
+            nodes[j, 2] = (e.h_ss * e.v_kappa - e.h_ks * e.v_strain) / det
+            nodes[j, 3] = (e.h_kk * e.v_strain - e.h_ks * e.v_kappa) / det
+            rows = j + 1
+        end = rows
+        for j in range(rows - 2, -1, -1):  # unloading, from the last node
+            r = _solver._follow_ev(k, s, (j + 1) * spacing, j * spacing, prm, 0.0, _FREE_CURVATURE, opts)
+            if r.status > STATUS_ROUNDOFF:
+                end = j + 1
+                break
+            k, s = r.kappa, r.side_strain
+            if max(abs(k - nodes[j, 0]), abs(s - nodes[j, 1])) > agreement:
+                end = j  # two branches at this node: the table ends below it
+        return end
+
+    return tabulate
 
 
 @lru_cache(maxsize=16)
@@ -258,6 +271,7 @@ def _make_entries(stamp: int):
 
 
 _ENTRY_SOURCES = (_solver.mechanics, _solver.contact, _solver.xp, _jit, _solver, sys.modules[__name__])
+_tabulate = _jit.njit_cached(_make_tabulate, _ENTRY_SOURCES)
 
 interpolate = _jit.njit_cached(lambda stamp: _make_entries(stamp)["interpolate"], _ENTRY_SOURCES)
 """``interpolate(nodes, spacing, p) -> (kappa~, e_s)``: the table's path at ``p`` (cubic Hermite), from Python."""
