@@ -16,15 +16,19 @@ nor keep the writes made through one (numba 0.68; the tests compare the parallel
 
 The result is a :class:`pneunet_env.task.Step`, bit for bit the one :func:`pneunet_env.task.step` gives with
 :func:`pneunet_env.task.newton_contact_batch` (the same compiled scalar solve, the same operations in the same
-order; tested), so the env's info, autoreset and seeding are unchanged. Only the work differs, and the solve's
+order; tested), so the env's info, autoreset and seeding are unchanged, where the params carry no free table
+(``solver.free_table: false``). With one (the default), a step that touches nothing follows the free actuator's
+tabulated path (:mod:`pneunet_env.physics.free_table`): the same minimum to within the solver's tolerance (not bit
+for bit), in one or two energy evaluations. Only the work differs, and the solve's
 ``evaluations`` says so: with the cache (see :func:`fused_step`) a step starts from the evaluation its last step
 ended on, and where the pressure did not change and that start is a converged minimum (the descent's own test) the
 solve is skipped, its result being the start itself, as the continuation would return it.
 
 The single env's step (:class:`SingleStep`) is the same loop at N = 1, called from one compiled function on the
 env's state packed in one float array: one call from Python instead of the scalar :func:`pneunet_env.task.step`'s
-dozens, with the same :class:`~pneunet_env.task.Step`, bit for bit. (Calling the loop itself keeps one copy of the
-per-env code; a shared per-env function, tried first, cost the vector loop 5-9 % even inlined.)
+dozens, with the same :class:`~pneunet_env.task.Step`, bit for bit (without the free table; with it, as above).
+(Calling the loop itself keeps one copy of the per-env code; a shared per-env function, tried first, cost the vector
+loop 5-9 % even inlined.)
 """
 
 from __future__ import annotations
@@ -380,9 +384,10 @@ def _single_for(params_type: type):
 
 class SingleStep:
     """:func:`pneunet_env.task.step` for one env with the pneu-net's contact, as one compiled call (numba): the same
-    :class:`~pneunet_env.task.Step`, bit for bit, built from the call's numbers (see the module for the work counters,
-    which the evaluation cache lowers). Keeps the env's state packed in one float array (and the cache) between calls;
-    a state it did not return itself (a reset's, or one set by hand) is packed anew, with the cache emptied."""
+    :class:`~pneunet_env.task.Step`, bit for bit without the free table (see the module), built from the call's
+    numbers (see the module for the work counters, which the evaluation cache lowers). Keeps the env's state packed in
+    one float array (and the cache) between calls; a state it did not return itself (a reset's, or one set by hand)
+    is packed anew, with the cache emptied."""
 
     def __init__(self, params: task.EnvParams) -> None:
         if not HAVE_FUSED:

@@ -196,7 +196,8 @@ class PneuNetGraspEnv(SingleGraspEnv):
         super().__init__(render_mode, config, info_level, overrides)
         self._params = task.EnvParams.from_config(self.config)
         self._contact = task.newton_contact
-        # with numba, the step as one compiled call (pneunet_env.fused.SingleStep): task.step's result, bit for bit
+        # with numba, the step as one compiled call (pneunet_env.fused.SingleStep): task.step's result (bit for bit
+        # without the free table; with it, a free step is the same minimum to the solver's tolerance)
         self._single = fused.SingleStep(self._params) if fused.HAVE_FUSED else None
         self._class_names = task.class_names(self.config)
         self.observation_space = observation_space(self.config)

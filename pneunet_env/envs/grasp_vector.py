@@ -240,7 +240,9 @@ class PneuNetGraspVectorEnv(VectorEnv):
       ``backend="numpy"`` or ``"torch"`` is refused.
     * ``fused``: numba only (default there): the whole step as one compiled loop over the envs
       (:func:`pneunet_env.fused.fused_step`: the pressure update, the solve, the rules and the observation), bit for
-      bit :func:`pneunet_env.task.step`'s result; ``False``: the array step around the batched solve.
+      bit :func:`pneunet_env.task.step`'s result with ``free_table=False`` (with the free actuator's table, the
+      default, a step that touches nothing is the same minimum to the solver's tolerance, in 1-2 evaluations);
+      ``False``: the array step around the batched solve (no table).
     * ``info_keys``: the info keys to build each step (``None``: every key of ``info_level``; ``()``: none, the
       fastest, for training loops that read nothing from the info). ``final_obs`` and ``final_info`` (with
       ``is_success``) are always given where episodes end.
