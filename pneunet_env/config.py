@@ -255,7 +255,8 @@ class TaskConfig:
 
 
 BOOL_FIELDS = ("terminate_on_damage", "terminate_on_slip", "observe_volume")
-"""The config's boolean keys (all in :class:`TaskConfig`): ``true`` or ``false``, never a string."""
+""":class:`TaskConfig`'s boolean keys: ``true`` or ``false``, never a string (the solver section's one,
+``free_table``, is checked by :class:`~pneunet_env.physics.solver.SolverOptions`)."""
 
 DAMAGE_RULES = ("hoop_strain", "crush_fraction")
 """The damage rules (:class:`TaskConfig` ``damage_rule``)."""

@@ -417,6 +417,7 @@ class PneuNetGraspVectorEnv(VectorEnv):
         state = self.__dict__.copy()
         for key in ("_xp", "_contact", "_step_fn", "_busy"):
             state.pop(key, None)
+        state["_handed_out"] = None  # the copy's state is handed to no one
         return state
 
     def __setstate__(self, state: dict[str, Any]) -> None:

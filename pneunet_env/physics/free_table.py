@@ -106,7 +106,9 @@ class FreeTable(NamedTuple):
 
 
 EMPTY = FreeTable(np.zeros((0, len(NODE_FIELDS))), SPACING)
-"""No table (every step is the continuation's)."""
+"""No table (every step is the continuation's). Read-only, as :func:`free_table`'s are: numba types a read-only array
+apart, so both kinds would compile the loops twice."""
+EMPTY.nodes.setflags(write=False)
 
 BRANCH_AGREEMENT = 1e-8
 """Loading and unloading must agree to within this at every node of a table (``max(|d kappa~|, |d e_s|)``). The

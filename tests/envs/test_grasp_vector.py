@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 
 import gymnasium as gym
@@ -556,3 +557,5 @@ def test_a_state_handed_out_is_never_changed_and_one_kept_inside_is_reset_in_pla
     for a, b in zip(task.leaves(kept2), before2, strict=True):
         np.testing.assert_array_equal(a, b)
     assert resets > n and written_in_place > 40
+    env.state  # noqa: B018  (hands the state out)
+    assert env._handed_out is env._state and copy.deepcopy(env)._handed_out is None  # the copy's is held by no one
