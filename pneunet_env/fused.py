@@ -269,7 +269,11 @@ def _loop_params(tp: task.TaskParams) -> task.TaskParams:
 def _table(params: task.EnvParams) -> tuple[np.ndarray, float]:
     """The free table's ``(nodes, spacing)`` as the loop takes them (an empty one where the params have none)."""
     t = free_table.EMPTY if params.free_table is None else params.free_table
-    return t.nodes, float(t.spacing)
+    nodes = t.nodes
+    if nodes.flags.writeable:  # (an unpickled table): read-only, as numba compiled the loops for
+        nodes = nodes.view()
+        nodes.setflags(write=False)
+    return nodes, float(t.spacing)
 
 
 def fused_step(state: task.EnvState, action: np.ndarray, params: task.EnvParams, parallel: bool | None = None,

@@ -19,12 +19,15 @@ When the path is used, and why it is the right minimum:
 
 * the table covers the path only as far as it is one plain branch: every node converged, no fold crossed (the
   continuation's ``snapped``), a positive-definite Hessian, ``kappa~`` never decreasing, and loading and unloading
-  agreeing (:data:`BRANCH_AGREEMENT`: no hysteresis, even with folds too weak to flag). :func:`build_free_table`
-  ends it below the first node that is not, so an actuator whose free path folds has a table only below the fold;
-* the start is a free equilibrium within ``max_jump`` of the path at its pressure (the continuation's own test of
-  one branch), and the path at the new pressure is free. Since ``kappa~`` rises along the path, the whole path
+  agreeing (:data:`BRANCH_AGREEMENT`: no hysteresis within the table, even with folds too weak to flag).
+  :func:`build_free_table` ends it below the first node that is not, so an actuator whose free path folds has a
+  table only below the fold (the branch beyond a fold may reach back below it: unloading from the table's end cannot
+  see that branch, so the next condition is what keeps its states off the table);
+* the start is a free equilibrium on the path at its pressure (within :data:`ON_PATH`, far tighter than the gap to
+  any other branch), and the path at the new pressure is free. Since ``kappa~`` rises along the path, the whole path
   between the two pressures is free: the continuation would follow the table's branch, on which the object's energy
-  is zero.
+  is zero;
+* the polished state is a converged minimum, free, within ``max_jump`` of the table's state.
 
 Only the compiled steps use it (numba: :mod:`pneunet_env.fused`), where :class:`SolverOptions.free_table
 <pneunet_env.physics.solver.SolverOptions>` is set (the default).
@@ -115,6 +118,12 @@ BRANCH_AGREEMENT = 1e-8
 same branch, followed both ways, agrees to the continuation's own accuracy (about 1e-11: 6.9e-12 on Table 1's
 actuator); two stable branches differ by their separation (a fold's jump)."""
 
+ON_PATH = 1e-7
+"""A start is on the table's path if it lies within this of it (``max(|d kappa~|, |d e_s|)``). A converged state lies
+within about 1e-9 of the exact path (``gtol`` over the Hessian's smallest eigenvalue) and the table within 2.2e-10;
+another stable branch lies a fold's jump away. (The continuation's own test of one branch, ``max_jump = 0.02``, would
+let a state on a coexisting upper branch, such as one reached across a fold and unloaded, be moved onto the path.)"""
+
 _FREE_CURVATURE = 1.0
 """The object curvature passed to the kernel while tabulating: with ``k~_obj = 0`` the object's energy is zero
 whatever it is (any value inside the kernel's domain)."""
@@ -142,6 +151,8 @@ def build_free_table(prm: ActuatorNumbers, opts: tuple, pressure_max: float, spa
     if not (isinstance(pressure_max, float) and math.isfinite(pressure_max) and pressure_max > 0.0):
         raise ValueError(f"pressure_max must be a finite float > 0, got {pressure_max!r}")
     m = min(int(math.ceil(min(pressure_max / spacing, MAX_NODES) - 1e-9)) + 1, MAX_NODES)
+    while m < MAX_NODES and (m - 1) * spacing < pressure_max:  # the last node at or above p_max, not an ulp below
+        m += 1
     opts = tuple(opts[:7]) + (min(int(opts[7]), NODE_SUBSTEPS),)  # SolverOptions.as_tuple(): max_substeps last
     nodes = np.empty((m, len(NODE_FIELDS)))
     end = _tabulate(prm, opts, spacing, BRANCH_AGREEMENT, nodes)
@@ -174,10 +185,12 @@ def _make_tabulate(stamp: int):
             nodes[j, 3] = (e.h_kk * e.v_strain - e.h_ks * e.v_kappa) / det
             rows = j + 1
         end = rows
+        if rows > 0:  # unloading starts from the last node kept (loading may have stopped past it)
+            k, s = nodes[rows - 1, 0], nodes[rows - 1, 1]
         for j in range(rows - 2, -1, -1):  # unloading, from the last node
             r = _solver._follow_ev(k, s, (j + 1) * spacing, j * spacing, prm, 0.0, _FREE_CURVATURE, opts)
             if r.status > STATUS_ROUNDOFF:
-                end = j + 1
+                end = 0  # the nodes below cannot be checked: no table
                 break
             k, s = r.kappa, r.side_strain
             if max(abs(k - nodes[j, 0]), abs(s - nodes[j, 1])) > agreement:
@@ -236,15 +249,16 @@ def make_follow_table(evaluate, descend, jit):
         if nodes.shape[0] < 2 or not (k < ko and p0 <= top and p1 <= top):
             return not_taken(k, s, 0, 0)
         k0, s0 = interpolate(nodes, spacing, p0)
-        if max(abs(k - k0), abs(s - s0)) > max_jump:
-            return not_taken(k, s, 0, 0)  # not on the table's branch
+        if max(abs(k - k0), abs(s - s0)) > ON_PATH:
+            return not_taken(k, s, 0, 0)  # not on the table's path
         k1, s1 = interpolate(nodes, spacing, p1)
         k1 = max(k1, 0.0)  # the domain's edge, as the descent projects (the rest state lies on it)
         if not k1 < ko:
             return not_taken(k, s, 0, 0)  # the path touches the object by p1
         ev = evaluate(k1, s1, p1, prm, kobj, ko)
         r = descend(k1, s1, p1, prm, kobj, ko, gtol, corr_iter, eig_floor, ev, k1, s1, max_jump)
-        if r.status <= STATUS_ROUNDOFF and r.kappa < ko:
+        moved = max(abs(r.kappa - k1), abs(r.side_strain - s1))
+        if r.status <= STATUS_ROUNDOFF and r.kappa < ko and moved <= max_jump:
             return Continuation(r.kappa, r.side_strain, r.energy, r.gradient_norm, r.min_eigenvalue, r.iterations, 1,
                                 False, r.status, r.evaluation.volume_change, 1 + r.evaluations, r.backtracks,
                                 r.evaluation)

@@ -534,28 +534,33 @@ def test_the_in_place_autoreset_never_changes_a_state_handed_out(mode):
 
 @pytest.mark.parametrize("mode", ["SameStep", "NextStep"])
 def test_a_state_handed_out_is_never_changed_and_one_kept_inside_is_reset_in_place(mode):
-    """``env.state`` is a snapshot: later steps and their autoresets never write into its arrays. A state nobody was
-    handed is reset in place: the objects' and thresholds' arrays it shares with the state before are written, not
-    copied (the copy costs a pass over every env's object at each autoreset)."""
+    """``env.state`` is a snapshot: later steps and their autoresets never write into its arrays (the first autoreset
+    after it copies the arrays it still shares). A state nobody was handed is reset in place: the objects' arrays it
+    shares with the state before are written, not copied (a copy is a pass over every env's object)."""
     n = 6
     env = PneuNetGraspVectorEnv(n, autoreset_mode=mode, **SHORT)
     env.reset(seed=3)
     rng = np.random.default_rng(3)
-    kept = env.state
-    before = [np.array(a, copy=True) for a in task.leaves(kept)]
-    written_in_place = resets = 0
-    for t in range(60):
-        inner = env._state.obj.stiffness  # the env's own array (not handed out: no property read)
-        *_, term, trunc, _ = env.step(rng.uniform(0.0, 1.5, (n, 1)).astype(np.float32))
-        resets += int(np.sum(term | trunc))
-        written_in_place += env._state.obj.stiffness is inner
-        if t == 30:  # a second snapshot, mid-run
-            kept2 = env.state
-            before2 = [np.array(a, copy=True) for a in task.leaves(kept2)]
-    for a, b in zip(task.leaves(kept), before, strict=True):
-        np.testing.assert_array_equal(a, b)
-    for a, b in zip(task.leaves(kept2), before2, strict=True):
-        np.testing.assert_array_equal(a, b)
-    assert resets > n and written_in_place > 40
+    snapshots = [env.state]  # handed out: the next autoreset must copy
+    before = [[np.array(a, copy=True) for a in task.leaves(snapshots[0])]]
+    in_place = copied = 0
+    protected = True
+    for t in range(80):
+        inner = env._state.obj.stiffness  # the env's own array (read without handing the state out)
+        env.step(rng.uniform(0.0, 1.5, (n, 1)).astype(np.float32))
+        if np.any(env._state.task.step == 0):  # an autoreset in this step (a sub-env back at step 0)
+            same = env._state.obj.stiffness is inner
+            assert same != protected, (t, protected)  # copied after a snapshot, written in place otherwise
+            in_place += same
+            copied += not same
+            protected = False
+        if t == 40:  # a second snapshot, mid-run
+            snapshots.append(env.state)
+            before.append([np.array(a, copy=True) for a in task.leaves(snapshots[1])])
+            protected = True
+    for snap, values in zip(snapshots, before, strict=True):
+        for a, b in zip(task.leaves(snap), values, strict=True):
+            np.testing.assert_array_equal(a, b)
+    assert copied == 2 and in_place > 5, (copied, in_place)
     env.state  # noqa: B018  (hands the state out)
     assert env._handed_out is env._state and copy.deepcopy(env)._handed_out is None  # the copy's is held by no one

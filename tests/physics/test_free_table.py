@@ -97,6 +97,7 @@ def test_the_table_declines_what_is_not_a_free_step_on_its_branch(table):
         "start in contact": (k, s, 0.6, 0.62, 1e-3, k * 0.99),
         "the path touches by p1": (k, s, 0.6, 0.66, 1e-3, ft.interpolate(nodes, h, 0.65)[0]),
         "off the branch": (k + 2 * OPTS[5], s, 0.6, 0.62, 1e-3, 2.0),
+        "off the path, within max_jump": (k, s + 1e-5, 0.6, 0.62, 1e-3, 2.0),  # a branch close by is still another
         "beyond the table": (k, s, 0.6, P_MAX + 0.01, 1e-3, 2.0),
     }
     for name, (k0, s0, p0, p1, kobj, ko) in cases.items():
@@ -143,6 +144,17 @@ def test_a_huge_pressure_range_is_tabulated_only_to_max_nodes():
     k, s = t.nodes[-1, :2]
     r = ft.follow_table(k, s, t.pressure_max, t.pressure_max * 2, PRM, 0.0, 2.0, OPTS, t.nodes, t.spacing)
     assert r.status == STATUS_INACTIVE  # above the table: the continuation's
+
+
+def test_the_table_reaches_p_max_even_when_the_spacing_does_not_divide_it():
+    """10.8 kPa over 50 kPa is 0.21600000000000003: the last node is at or above it, not an ulp below (steps at the
+    ceiling would otherwise all fall back on the continuation)."""
+    p_max = 10.8 / 50.0
+    t = ft.build_free_table(PRM, OPTS, p_max)
+    assert t.pressure_max >= p_max and len(t.nodes) == 434
+    k, s = t.nodes[-2, :2]
+    r = ft.follow_table(k, s, (len(t.nodes) - 2) * t.spacing, p_max, PRM, 0.0, 2.0, OPTS, t.nodes, t.spacing)
+    assert r.status != STATUS_INACTIVE
 
 
 def test_bad_arguments_and_the_option():
