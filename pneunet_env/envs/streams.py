@@ -75,6 +75,18 @@ def _mulhi64(x: np.ndarray, y: np.uint64) -> np.ndarray:
     return p11 + (p01 >> _S32) + (p10 >> _S32) + (mid >> _S32)
 
 
+_U11, _U58, _U63, _U64 = (np.uint64(v) for v in (11, 58, 63, 64))
+
+
+def _output(hi, lo):
+    """PCG64's output of a state (XSL-RR) as a double in ``[0, 1)``: written for uint64 arrays and, compiled, for
+    uint64 numbers alike (:data:`_draw` calls it)."""
+    x = hi ^ lo
+    rot = hi >> _U58
+    u = (x >> rot) | (x << ((_U64 - rot) & _U63))
+    return np.float64(u >> _U11) * (1.0 / 9007199254740992.0)
+
+
 def _lcg_step(hi, lo, ihi, ilo):
     """``state * MULT + inc`` modulo 2**128, states as (high, low) uint64 halves."""
     nlo = lo * _MULT_LO
@@ -132,10 +144,7 @@ class PCG64Streams:
         with np.errstate(over="ignore"):
             for j in range(count):
                 hi, lo = _lcg_step(hi, lo, ihi, ilo)
-                x = hi ^ lo
-                rot = hi >> np.uint64(58)
-                u = (x >> rot) | (x << ((np.uint64(64) - rot) & np.uint64(63)))  # XSL-RR output
-                out[j] = (u >> np.uint64(11)).astype(np.float64) * (1.0 / 9007199254740992.0)
+                out[j] = _output(hi, lo)
         self.hi[idx], self.lo[idx] = hi, lo
         return out
 
@@ -153,30 +162,24 @@ class PCG64Streams:
 
 
 def _make_draw(stamp: int):
-    one, zero, s11, s58, s63, s64 = (np.uint64(v) for v in (1, 0, 11, 58, 63, 64))
-    mult_hi, mult_lo, m32, s32 = _MULT_HI, _MULT_LO, _M32, _S32
+    one, zero, mult_hi, mult_lo = np.uint64(1), np.uint64(0), _MULT_HI, _MULT_LO
+    mulhi64, output = _jit.njit(_mulhi64), _jit.njit(_output)  # the array forms' own functions, compiled
 
     def draw(hi_a, lo_a, ihi_a, ilo_a, idx, out):
-        # PCG64Streams.random's arithmetic, stream by stream: the LCG step (_lcg_step, with _mulhi64's limbs) and the
-        # XSL-RR output, in uint64 (wrapping, as numpy's); writes out[j, c] for stream idx[c] and advances it.
+        # PCG64Streams.random, stream by stream: _lcg_step (its carry as a branch: numba types np.uint64(bool) as
+        # int64, and int64 with uint64 gives float64) and _output, in uint64 (wrapping, as numpy's); writes out[j, c]
+        # for stream idx[c] and advances it.
         if stamp < 0:  # the stamp keys the disk cache (see _jit.njit_cached)
             raise AssertionError
         for c in range(idx.shape[0]):
             i = idx[c]
             hi, lo, ihi, ilo = hi_a[i], lo_a[i], ihi_a[i], ilo_a[i]
             for j in range(out.shape[0]):
-                x0, x1 = lo & m32, lo >> s32
-                y0, y1 = mult_lo & m32, mult_lo >> s32
-                p00, p01, p10, p11 = x0 * y0, x0 * y1, x1 * y0, x1 * y1
-                mid = (p00 >> s32) + (p01 & m32) + (p10 & m32)
-                nhi = (p11 + (p01 >> s32) + (p10 >> s32) + (mid >> s32)) + lo * mult_hi + hi * mult_lo
+                nhi = mulhi64(lo, mult_lo) + lo * mult_hi + hi * mult_lo
                 nlo = lo * mult_lo
                 lo = nlo + ilo
                 hi = nhi + ihi + (one if lo < nlo else zero)
-                x = hi ^ lo
-                rot = hi >> s58
-                u = (x >> rot) | (x << ((s64 - rot) & s63))
-                out[j, c] = np.float64(u >> s11) * (1.0 / 9007199254740992.0)
+                out[j, c] = output(hi, lo)
             hi_a[i] = hi
             lo_a[i] = lo
 

@@ -165,8 +165,16 @@ def test_default_config_run_converges_and_matches_singles_at_scale():
 # ---- random streams ----------------------------------------------------------------------------------------
 
 
+@pytest.mark.parametrize("path", ["compiled", "arrays"])
 @pytest.mark.parametrize("seed", [0, 1, 12345, 2**32 - 3, 2**63 + 7, 2**100 + 2**64 - 2])
-def test_streams_are_numpys_pcg64_bit_for_bit(seed):
+def test_streams_are_numpys_pcg64_bit_for_bit(seed, path, monkeypatch):
+    """Both draws (numba's compiled pass, and the array operations without numba) are numpy's PCG64."""
+    from pneunet_env.envs import streams as streams_module
+
+    if path == "arrays":
+        monkeypatch.setattr(streams_module, "_draw", None)
+    elif streams_module._draw is None:
+        pytest.skip("needs numba")
     n = 5
     streams = PCG64Streams(n)
     streams.seed(np.arange(n), _seed_words(seed, n))
