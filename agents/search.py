@@ -58,7 +58,7 @@ from pneunet_env.arguments import count, integer, output_file, real
 from pneunet_env.arguments import seed as seed_type
 from pneunet_env.config import EnvConfig, load_config
 from pneunet_env.files import atomic_write_json, atomic_write_text, deferred_interrupt
-from pneunet_env.locks import RunLock
+from pneunet_env.locks import RunLock, release_held
 from pneunet_env.progress import add_progress_argument
 from pneunet_env.progress import progress as progress_bar
 
@@ -496,6 +496,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         return run(args)
     except KeyboardInterrupt:
+        release_held()  # a lock whose with-statement's exit the interrupt cut at its start
         print(f"{parser.prog}: interrupted", file=sys.stderr)
         return 130
 

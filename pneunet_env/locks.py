@@ -31,11 +31,23 @@ from typing import Any
 
 from pneunet_env.files import deferred_interrupt
 
-__all__ = ["RunLock", "LOCK_NAME", "lock_path_for", "deferred_interrupt"]
+__all__ = ["RunLock", "LOCK_NAME", "lock_path_for", "deferred_interrupt", "release_held"]
 
 
 LOCK_NAME = ".lock"
 """The lock file of a folder."""
+
+_HELD: set[RunLock] = set()
+"""The locks this process holds (a lock joins when it is taken, leaves when it is released)."""
+
+
+def release_held() -> None:
+    """Release every lock this process still holds: for the top of a command, after a Ctrl-C. A ``with RunLock``
+    whose exit is interrupted at its very start (Python handles a signal on entering a function, before any of its
+    own protection) leaves its lock file; by the time the interrupt reaches the command's top it has been delivered,
+    so this runs whole. (Seen: about one random Ctrl-C in 1,200 to 3,000 left a 50 ms ``search``'s lock.)"""
+    for lock in list(_HELD):
+        lock.release()
 
 
 def lock_path_for(target: str | os.PathLike, *, file: bool = False) -> Path:
@@ -105,6 +117,7 @@ class RunLock:
                 fh.flush()
                 os.fsync(fh.fileno())
             self._info, self.held = info, True  # from here, release() removes it
+            _HELD.add(self)
         except BaseException:  # an interrupt between the creation and the content: no empty lock left
             self.path.unlink(missing_ok=True)
             self.held = False
@@ -202,14 +215,27 @@ class RunLock:
     def release(self) -> None:
         """Remove the lock file if it is still ours (a process that took it over with ``--force`` keeps its own), and
         the folder :meth:`acquire` created for it if nothing else was written there (an interrupted command leaves
-        no empty folder)."""
-        with deferred_interrupt():
-            if not self.held:
-                return
-            self.held = False
-            if self.holder() == self._info:
-                self.path.unlink(missing_ok=True)
-            self._remove_folder()
+        no empty folder).
+
+        A Ctrl-C that lands before the block that holds interrupts has begun (while :func:`deferred_interrupt` sets
+        itself up) would skip the release: it is released then all the same, and the interrupt goes on. One that
+        lands on entering this method is left to :func:`release_held`, at the command's top."""
+        try:
+            with deferred_interrupt():
+                self._release()
+        finally:
+            if self.held:  # the interrupt came first
+                with deferred_interrupt():
+                    self._release()
+
+    def _release(self) -> None:
+        if not self.held:
+            return
+        self.held = False
+        _HELD.discard(self)
+        if self.holder() == self._info:
+            self.path.unlink(missing_ok=True)
+        self._remove_folder()
 
     def _remove_folder(self) -> None:
         if self._created_folder:

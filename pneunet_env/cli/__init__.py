@@ -203,6 +203,9 @@ def main(argv: list[str] | None = None) -> int:
             raise  # some other pipe: a real error
         return 141  # the reader of stdout went away (``| head``): stop quietly, 128 + SIGPIPE, as a Unix command does
     except KeyboardInterrupt as exc:
+        from pneunet_env.locks import release_held
+
+        release_held()  # a lock whose with-statement's exit the interrupt cut at its start
         if _debug():
             raise
         note = " ".join(str(a) for a in exc.args if str(a).strip())  # where the command left things, if it says
