@@ -88,6 +88,20 @@ def test_a_free_step_along_the_table_is_the_continuations_minimum(table):
     assert np.mean(ref_evals) > 3 * np.mean(evals)
 
 
+def test_a_table_step_is_within_1e9_of_the_30_digit_reference(table):
+    """Steps along the table (one with the object present, untouched) against the independent mpmath equilibrium."""
+    pytest.importorskip("mpmath")
+    from pneunet_env.physics.params import ActuatorParams
+    from pneunet_env.physics.reference import reference_minimum
+
+    for p0, p1 in [(0.0, 0.03), (0.3, 0.36), (0.55, 0.58), (0.62, 0.6), (1.1, 1.2), (0.7, 0.0)]:
+        k, s = _on_path(table, p0) if p0 > 0.0 else (0.0, 0.0)
+        r = ft.follow_table(k, s, p0, p1, PRM, 1e-3, 2.0, OPTS, table.nodes, table.spacing)
+        assert r.status != STATUS_INACTIVE, (p0, p1)
+        ref = reference_minimum(p1, 1e-3, 2.0, ActuatorParams(), (r.kappa, r.side_strain))
+        assert max(abs(r.kappa - ref[0]), abs(r.side_strain - ref[1])) <= 1e-9, (p1, r.kappa - ref[0])
+
+
 def test_the_table_declines_what_is_not_a_free_step_on_its_branch(table):
     """No step is taken from contact, into contact, from off the branch, beyond the table or with no table: status
     STATUS_INACTIVE, with no work done."""
