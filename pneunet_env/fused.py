@@ -24,23 +24,29 @@ for bit), in one or two energy evaluations. Only the work differs, and the solve
 ended on, and where the pressure did not change and that start is a converged minimum (the descent's own test) the
 solve is skipped, its result being the start itself, as the continuation would return it.
 
-The single env's step (:class:`SingleStep`) is the same loop at N = 1, called from one compiled function on the
+The single env's step (:class:`SingleStep`) is the same loop at N = 1, inlined into one compiled function on the
 env's state packed in one float array: one call from Python instead of the scalar :func:`pneunet_env.task.step`'s
 dozens, with the same :class:`~pneunet_env.task.Step`, bit for bit (without the free table; with it, as above).
 (Calling the loop itself keeps one copy of the per-env code; a shared per-env function, tried first, cost the vector
-loop 5-9 % even inlined.)
+loop 5-9 % even inlined.) The call takes arrays only (the params' numbers packed in one, :func:`_pack_params`), as
+numba types a tuple's numbers one by one on every call, and writes its results in place; a lean ``env.step``
+(:meth:`SingleStep.step_lean`) reads them as two lists and builds no record (0.10.0's step built seven, and its info
+through the table's 17 rows: 26 us against 6 us unwrapped).
 """
 
 from __future__ import annotations
 
 import math
 import sys
+import types
 from typing import Any, NamedTuple
 
 import numpy as np
 
 from pneunet_env import task, task_objects
 from pneunet_env.actions import check_action
+from pneunet_env.config import EnvConfig
+from pneunet_env.info import lean_info
 from pneunet_env.physics import _jit, batched, contact, free_table, mechanics, xp
 from pneunet_env.physics import solver as _solver
 from pneunet_env.physics._jit import HAVE_NUMBA
@@ -237,6 +243,9 @@ if HAVE_NUMBA:
     _contact = contact.make_contact(_jit.njit(xp.scalar_max), _jit.njit(xp.scalar_where), jit=_jit.njit)[1]
     _rules = task.make_rules(_jit.njit(_flag_value), _jit.njit(xp.scalar_max), jit=_jit.njit)
     _loop_serial, _loop_parallel = batched.compile_loops(_make_loop, _SOURCES)
+    # the single step's copy of the loop, inlined into it (numba IR): its ~50 array views are then made and released
+    # in one function, and numba drops their reference counting in pairs (1.6 -> 0.8 us a held step's compiled call)
+    _loop_single = numba.njit(_make_loop(0, 2), inline="always", nogil=True)
 
 
 EV_FIELDS = len(Evaluation._fields)
@@ -322,68 +331,126 @@ STATE_SIZE = 28
 :class:`Thresholds`' 3, the :class:`TaskState`'s 4 (flags as 0/1)."""
 
 
-def _make_single(stamp: int, params_type: type = task.TaskParams):
-    def single(x, a, t, prm_t, opts, table, spacing, volume_scale, cache, valid, f, n, b, obs):
+def _kinds(values) -> str:
+    """Each number's kind, as the compiled single step reads it from the packed params: ``i`` an integer, ``b`` a
+    flag, ``f`` a float (``None``, and the strings the loop does not read, are packed as 0.0)."""
+    return "".join("b" if type(v) is bool else "i" if type(v) is int else "f" for v in values)
+
+
+def _pack_params(params: task.EnvParams) -> np.ndarray:
+    """The numbers the single step reads, packed in one float array: the task's (:func:`_loop_params`), the actuator's,
+    the solver's (:meth:`SolverOptions.as_tuple`), the free table's spacing and the volume scale (0.0: none). Integers
+    and flags are exact in a float; :func:`_make_unpack`'s function reads them back as such."""
+    t = [0.0 if v is None else float(v) for v in _loop_params(params.task)]
+    table_spacing = _table(params)[1]
+    vs = 0.0 if params.volume_scale is None else float(params.volume_scale)
+    return np.array(t + [float(v) for v in params.actuator] + [float(v) for v in params.solver] + [table_spacing, vs])
+
+
+def _make_unpack(params_type: type, task_kinds: str):
+    """The compiled function that reads :func:`_pack_params`' array back as the records the loop takes: ``(task
+    params, actuator numbers, solver options, table spacing, volume scale)``, each number of its kind (``task_kinds``:
+    :func:`_kinds` of the task's params; the actuator's are floats, the solver's :meth:`SolverOptions.as_tuple`'s).
+
+    Why: numba types a tuple argument number by number on every call, about 20 ns each, 0.7 us for these 37 (a
+    third of the single step's call); an array is typed at once. The function is generated (one line per field), as
+    numba cannot build a record of mixed types in a loop."""
+    opt_kinds = _kinds(_solver.SolverOptions().as_tuple())
+    n_t, n_a = len(task_kinds), len(_solver.ActuatorNumbers._fields)
+
+    def read(i: int, kind: str) -> str:
+        return {"f": f"c[{i}]", "i": f"np.int64(c[{i}])", "b": f"c[{i}] != 0.0"}[kind]
+
+    t = ", ".join(read(i, k) for i, k in enumerate(task_kinds))
+    a = ", ".join(read(n_t + i, "f") for i in range(n_a))
+    o = ", ".join(read(n_t + n_a + i, k) for i, k in enumerate(opt_kinds))
+    end = n_t + n_a + len(opt_kinds)
+    source = (f"def unpack(c):\n    return (T({t}), A({a}), ({o},), c[{end}], c[{end + 1}])\n")
+    names = {"T": params_type, "A": _solver.ActuatorNumbers, "np": np}
+    exec(compile(source, f"<pneunet_env.fused unpack {params_type.__name__}>", "exec"), names)
+    return numba.njit(names["unpack"], nogil=True)
+
+
+def _make_single(stamp: int):
+    def single(x, a, c, table, cache, valid, f, n, b, obs):
         # The fused loop at N = 1 (the vector env's own code, compiled for this call), on views of the packed state x
         # (STATE_SIZE floats, updated in place) and of scratch arrays for what it writes (f: floats, n: integers,
-        # b: flags, obs: (1, 1 or 2)). t, prm_t: the task's and the actuator's numbers as plain tuples (numba reads a
-        # NamedTuple argument through Python: microseconds a call).
+        # b: flags, obs: (1, 1 or 2); see the comment above SingleStep). c: the params' numbers (_pack_params), read
+        # back as records by the global _unpack (_make_unpack: the default task's, or another section's).
         if stamp < 0:  # the stamp keys the disk cache (see _jit.njit_cached)
             raise AssertionError
-        tp = params_type(*t)
-        prm = _solver.ActuatorNumbers(*prm_t)
-        flag = x[7:8] != 0.0  # the state's in_contact, as the loop reads it
+        tp, prm, opts, spacing, volume_scale = _unpack(c)
+        b[17], b[18], b[19] = x[7] != 0.0, x[25] != 0.0, x[26] != 0.0  # the state's flags, as the loop reads them
+        flag = b[17:18]  # (in_contact; b[17:20], n[7] and f[13] are input slots: no allocation in the call)
         eq = Equilibrium(x[1:2], x[2:3], x[3:4], x[4:5], x[5:6], x[6:7], flag, x[8:9], x[9:10], x[10:11], x[11:12],
                          flag, n[0:1], n[0:1], flag, n[0:1], x[17:18], x[18:19], n[0:1], n[0:1])
-        state = TaskState(np.array([np.int64(x[24])]), x[25:26] != 0.0, x[26:27] != 0.0, x[27:28])
+        n[7] = np.int64(x[24])
+        f[13] = a
+        state = TaskState(n[7:8], b[18:19], b[19:20], x[27:28])
         solve = Equilibrium(f[0:1], f[1:2], f[2:3], f[3:4], f[4:5], f[5:6], b[0:1], f[6:7], f[7:8], f[8:9], f[9:10],
                             b[1:2], n[1:2], n[2:3], b[2:3], n[3:4], x[17:18], x[18:19], n[4:5], n[5:6])  # the object's
         outcome = task.Outcome(TaskState(n[6:7], b[3:4], b[4:5], f[10:11]), b[5:6], b[6:7], b[7:8], b[8:9], b[9:10],
                                b[10:11], b[11:12], b[12:13], b[13:14], b[14:15], f[11:12])
         out = Outputs(f[12:13], solve, b[15:16], b[16:17], outcome, obs)
-        _loop_serial(np.array([a]), x[0:1], eq, x[17:18], x[18:19], Thresholds(x[21:22], x[22:23], x[23:24]), state,
+        _loop_single(f[13:14], x[0:1], eq, x[17:18], x[18:19], Thresholds(x[21:22], x[22:23], x[23:24]), state,
                      tp, volume_scale, prm, opts, table, spacing, cache, valid, out)
-        e, ts, failed = solve, outcome.state, out.failed[0]
-        e_in_contact, e_converged, e_snapped = e.in_contact[0], e.converged[0], e.snapped[0]
+        e, ts = solve, outcome.state
         x[0] = out.command[0]
-        if not failed:  # the new equilibrium (a failed step keeps the previous one)
+        if not out.failed[0]:  # the new equilibrium (a failed step keeps the previous one)
             x[1], x[2], x[3], x[4], x[5] = e.pressure[0], e.curvature[0], e.side_strain[0], e.top_strain[0], \
                 e.contact_force[0]
-            x[6], x[7], x[8] = e.indentation[0], 1.0 if e_in_contact else 0.0, e.volume_change[0]
+            x[6], x[7], x[8] = e.indentation[0], 1.0 if e.in_contact[0] else 0.0, e.volume_change[0]
             x[9], x[10], x[11] = e.energy[0], e.gradient_norm[0], e.min_eigenvalue[0]
-            x[12], x[13], x[14] = 1.0 if e_converged else 0.0, e.iterations[0], e.substeps[0]
-            x[15], x[16], x[17], x[18] = 1.0 if e_snapped else 0.0, e.status[0], e.object_stiffness[0], \
+            x[12], x[13], x[14] = 1.0 if e.converged[0] else 0.0, e.iterations[0], e.substeps[0]
+            x[15], x[16], x[17], x[18] = 1.0 if e.snapped[0] else 0.0, e.status[0], e.object_stiffness[0], \
                 e.object_curvature[0]
             x[19], x[20] = e.evaluations[0], e.backtracks[0]
         x[24], x[25] = ts.step[0], 1.0 if ts.damaged[0] else 0.0
         x[26], x[27] = 1.0 if ts.dropped[0] else 0.0, ts.peak_force[0]
-        o = outcome
-        # plain tuples of numbers (see _jit.python_entry), the records' fields in their order
-        return ((out.clipped[0], failed, out.command[0]),
-                (e.pressure[0], e.curvature[0], e.side_strain[0], e.top_strain[0], e.contact_force[0],
-                 e.indentation[0], e_in_contact, e.volume_change[0], e.energy[0], e.gradient_norm[0],
-                 e.min_eigenvalue[0], e_converged, e.iterations[0], e.substeps[0], e_snapped, e.status[0],
-                 e.object_stiffness[0], e.object_curvature[0], e.evaluations[0], e.backtracks[0]),
-                (ts.step[0], ts.damaged[0], ts.dropped[0], ts.peak_force[0]),
-                (o.in_hold[0], o.overstressed[0], o.crushed[0], o.damage_event[0], o.slipping[0], o.drop_event[0],
-                 o.held[0], o.terminated[0], o.truncated[0], o.success[0], o.reward[0]))
+        # the new state's numbers that a lean info reads, beside the step's (one list from f and one from b, in Python)
+        f[14], f[15], f[16], f[17] = x[1], x[2], x[5], x[6]
+        b[17] = x[7] != 0.0
+        # nothing returned: Python reads f, n, b, obs and x (see SingleStep), a list from each array in one call
 
     return single
 
 
 if HAVE_NUMBA:
+    _TASK_KINDS = _kinds(_loop_params(task.TaskParams.from_config(EnvConfig())))
+    _unpack = _make_unpack(task.TaskParams, _TASK_KINDS)  # the default task's (read by _single as a global)
     _single = _jit.njit_cached(_make_single, _SOURCES)
-_SINGLES: dict[type, Any] = {}
+_SINGLES: dict[tuple[type, str], Any] = {}
 """The compiled single step of a task section with more fields (:func:`pneunet_env.task.task_params_type`), by its
-params type: compiled when first used, not cached on disk."""
+params type and their kinds: compiled when first used, not cached on disk."""
 
 
-def _single_for(params_type: type):
+def _single_for(params_type: type, task_kinds: str):
+    """The compiled single step for a task's params of this type (and kinds: :func:`_kinds`): the default task's,
+    cached on disk, or one compiled for another task section, with its own unpacking of the params."""
     if params_type is task.TaskParams:
         return _single
-    if params_type not in _SINGLES:
-        _SINGLES[params_type] = numba.njit(_make_single(0, params_type), nogil=True)
-    return _SINGLES[params_type]
+    key = (params_type, task_kinds)
+    if key not in _SINGLES:
+        fn = _make_single(0)
+        # the same code, reading this section's unpacking as its global _unpack (and the loop as it is now)
+        names = {**fn.__globals__, "_unpack": _make_unpack(params_type, task_kinds),
+                 "_loop_single": numba.njit(_make_loop(0, 2), inline="always", nogil=True)}
+        fn = types.FunctionType(fn.__code__, names, fn.__name__, fn.__defaults__, fn.__closure__)
+        _SINGLES[key] = numba.njit(fn, nogil=True)
+    return _SINGLES[key]
+
+
+# The single step's scratch arrays (what its compiled call writes, by index):
+# * f (18 floats): the solve's pressure, curvature, side_strain, top_strain, contact_force, indentation (0-5),
+#   volume_change, energy, gradient_norm, min_eigenvalue (6-9); the outcome's peak_force (10), reward (11); the new
+#   command (12); the action (13, an input); the new state's pressure, curvature, contact_force, indentation (14-17).
+# * n (8 integers): unused (0); the solve's iterations, substeps, status, evaluations, backtracks (1-5); the outcome's
+#   step (6); the state's step (7, an input).
+# * b (20 flags): the solve's in_contact, converged, snapped (0-2); the outcome's damaged, dropped (3, 4), in_hold,
+#   overstressed, crushed, damage_event, slipping, drop_event, held, terminated, truncated, success (5-14); failed
+#   (15), clipped (16); the state's in_contact, damaged, dropped (17-19: inputs; 17 is then the new state's).
+# * x (STATE_SIZE floats, the state, updated in place): the command (0), the equilibrium's 20 fields (1-20), the
+#   thresholds' 3 (21-23), the task state's 4 (24-27; flags as 0/1).
 
 
 class SingleStep:
@@ -391,59 +458,101 @@ class SingleStep:
     :class:`~pneunet_env.task.Step`, bit for bit without the free table (see the module), built from the call's
     numbers (see the module for the work counters, which the evaluation cache lowers). Keeps the env's state packed in
     one float array (and the cache) between calls; a state it did not return itself (a reset's, or one set by hand)
-    is packed anew, with the cache emptied."""
+    is packed anew, with the cache emptied.
+
+    Two ways to call it: ``single(state, action)`` returns the :class:`~pneunet_env.task.Step`;
+    :meth:`step_lean` steps the state it holds and returns only what a lean ``env.step`` returns (no record is built:
+    :meth:`state` builds the state's record when it is asked for).
+    """
 
     def __init__(self, params: task.EnvParams) -> None:
         if not HAVE_FUSED:
             raise RuntimeError("the compiled single step needs numba (pip install pneunet-env[fast])")
-        # numbers only, as plain tuples (the strings and the namespace, read at reset, become 0.0)
-        self._t = tuple(0.0 if v is None else v for v in _loop_params(params.task))
-        self._params_type = type(params.task)
-        self._call = _single_for(self._params_type)
-        self._prm = tuple(params.actuator)
-        self._opts = tuple(params.solver)
-        self._table, self._spacing = _table(params)
+        # the numbers, packed in one array (the strings and the namespace, read at reset, become 0.0)
+        self._params = _pack_params(params)
+        self._key = (type(params.task), _kinds(_loop_params(params.task)))
+        self._call = _single_for(*self._key)
+        self._table = _table(params)[0]
         self._volume = params.volume_scale is not None
-        self._vs = float(params.volume_scale) if self._volume else 0.0
+        self._mu, self._w = float(params.task.shear_modulus_kpa), float(params.task.width_mm)
         self._x = np.zeros(STATE_SIZE)
         self._c, self._valid = new_cache(1)
-        # the loop's outputs at N = 1: floats, integers, flags, the observation
-        self._f, self._n, self._b = np.empty(13), np.empty(7, np.int64), np.empty(17, bool)
-        self._obs = np.empty((1, 2 if self._volume else 1), np.float32)
-        self._state: task.EnvState | None = None  # the state self._x holds
+        # the loop's outputs at N = 1 (floats, integers, flags, the observation; layout: the comment above)
+        self._f, self._n, self._b = np.empty(18), np.empty(8, np.int64), np.empty(20, bool)
+        self._obs = np.empty(2 if self._volume else 1, np.float32)  # the observation (the loop writes a (1, k) view)
+        self._obs_rows = self._obs.reshape(1, -1)
+        self._state: task.EnvState | None = None  # the record of the state self._x holds (None: not built)
+        self._obj: Any = None  # the object and thresholds of the state self._x holds
+        self._thresholds: Thresholds | None = None
 
     def __getstate__(self) -> dict[str, Any]:
-        """Pickled without the compiled function (found again by the params' type on unpickling)."""
+        """Pickled without the compiled function (found again by the params' type on unpickling) and the
+        observation's view."""
         state = self.__dict__.copy()
-        state["_call"] = state["_params_type"]
+        state["_call"] = state["_obs_rows"] = None  # (the view is made again: a copy would not be one)
         return state
 
     def __setstate__(self, state: dict[str, Any]) -> None:
         self.__dict__.update(state)
-        self._call = _single_for(self._params_type)
+        self._call = _single_for(*self._key)
+        self._obs_rows = self._obs.reshape(1, -1)
 
-    def _load(self, state: task.EnvState) -> None:
+    def load(self, state: task.EnvState) -> None:
+        """Hold ``state`` (packed), with the cache emptied, unless it is the record of the state already held."""
+        if state is self._state:
+            return
         x = self._x
         x[0] = state.command
         x[_X_EQ:_X_THRESHOLDS] = [float(v) for v in state.eq]
         x[_X_THRESHOLDS:_X_TASK] = [float(v) for v in state.thresholds]
         x[_X_TASK:] = [float(v) for v in state.task]
         self._valid[0] = False
-        self._state = state
+        self._state, self._obj, self._thresholds = state, state.obj, state.thresholds
+
+    def state(self) -> task.EnvState:
+        """The record of the state held (built from the packed numbers once, after a :meth:`step_lean`)."""
+        if self._state is None:
+            x = self._x.tolist()
+            eq = Equilibrium(x[1], x[2], x[3], x[4], x[5], x[6], x[7] != 0.0, x[8], x[9], x[10], x[11], x[12] != 0.0,
+                             int(x[13]), int(x[14]), x[15] != 0.0, int(x[16]), x[17], x[18], int(x[19]), int(x[20]))
+            ts = TaskState(int(x[24]), x[25] != 0.0, x[26] != 0.0, x[27])
+            self._state = task.EnvState(x[0], eq, self._obj, self._thresholds, ts)
+        return self._state
+
+    def _advance(self, action: float) -> None:
+        """The compiled step of the state held, in place (``action``: a float, checked here)."""
+        a = check_action(action)
+        self._call(self._x, a, self._params, self._table, self._c, self._valid, self._f, self._n, self._b,
+                   self._obs_rows)
+        self._state = None
 
     def __call__(self, state: task.EnvState, action: float) -> task.Step:
         """One step from ``state`` with ``action`` (a float; NaN and inf raise ``ValueError``, as
         :func:`~pneunet_env.task.update_pressure` does)."""
-        if state is not self._state:
-            self._load(state)
-        a = check_action(action)
-        (clipped, failed, command), solve, ts, flags = self._call(
-            self._x, a, self._t, self._prm, self._opts, self._table, self._spacing, self._vs, self._c, self._valid,
-            self._f, self._n, self._b, self._obs)
-        solve = Equilibrium._make(solve)
-        ts = TaskState._make(ts)
-        outcome = task.Outcome(ts, *flags)
-        obs = self._obs[0].copy()
-        self._state = new = task.EnvState(command, state.eq if failed else solve, state.obj, state.thresholds, ts)
-        return task.Step(new, obs, outcome.reward, outcome.terminated, outcome.truncated, solve, outcome, clipped,
-                         failed)
+        self.load(state)
+        self._advance(action)
+        f, n, b = self._f.tolist(), self._n.tolist(), self._b.tolist()
+        x = self._x
+        solve = Equilibrium(f[0], f[1], f[2], f[3], f[4], f[5], b[0], f[6], f[7], f[8], f[9], b[1], n[1], n[2], b[2],
+                            n[3], float(x[17]), float(x[18]), n[4], n[5])
+        ts = TaskState(n[6], b[3], b[4], f[10])
+        outcome = task.Outcome(ts, *b[5:15], f[11])
+        failed = b[15]
+        # the new state's record: the solve's (the previous state's equilibrium where it failed)
+        self._state = new = task.EnvState(f[12], state.eq if failed else solve, state.obj, state.thresholds, ts)
+        return task.Step(new, self._obs.copy(), outcome.reward, outcome.terminated, outcome.truncated, solve,
+                         outcome, b[16], failed)
+
+    def step_lean(self, action: float) -> tuple[np.ndarray, float, bool, bool, dict[str, Any]]:
+        """One step of the state held (:meth:`load` it first): ``(obs, reward, terminated, truncated, info)`` as a
+        single env with ``info_level="lean"`` returns them (:func:`pneunet_env.info.lean_info`; ``is_success`` added
+        on an episode's last step), the same values as from :meth:`__call__`'s record, without building one."""
+        self._advance(action)
+        f, b = self._f.tolist(), self._b.tolist()
+        terminated, truncated = b[12], b[13]
+        info = lean_info(f[14], f[15], f[16], f[17], b[17], self._n.item(6), b[3], b[4], b[2], b[1], b[15], b[16],
+                         b[5], b[6], b[7], b[9], b[11], self._mu, self._w)
+        if terminated or truncated:
+            info["is_success"] = b[14]
+        return self._obs.copy(), f[11], terminated, truncated, info
+

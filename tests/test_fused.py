@@ -193,4 +193,92 @@ def test_the_single_env_steps_with_the_compiled_call():
     env.reset(seed=0)
     for _ in range(3):
         env.step(np.ones(1, np.float32))
-    assert env._single._state is env.state  # the packed state is the env's own: the compiled call made these steps
+    state = env.state  # built from the packed state the compiled call left (no record was built by the steps)
+    assert env._single._state is state and state.task.step == 3
+    assert env.state is state  # built once
+
+
+def _record_path(env):
+    """``env`` stepping through the records (``_step_state`` and :func:`pneunet_env.task.build_info`), the fast
+    path off."""
+    env.unwrapped._step_fast = lambda state, action: None
+    return env
+
+
+def _assert_same_record(a, b, where):
+    assert type(a) is type(b), where
+    for f in a._fields:
+        va, vb = getattr(a, f), getattr(b, f)
+        if hasattr(va, "_fields"):
+            _assert_same_record(va, vb, f"{where}.{f}")
+        else:
+            assert type(va) is type(vb) and (va == vb or (va != va and vb != vb)), (where, f, va, vb)
+
+
+@pytest.mark.parametrize("overrides", [
+    {},
+    {"free_table": False},
+    {"observe_volume": True, "max_pressure_step_kpa": 8.0},
+    {"max_substeps": 3, "max_pressure_step_kpa": 20.0},  # unconverged solves: the state kept, truncation
+    pytest.param({"terminate_on_damage": False, "terminate_on_slip": False}, marks=pytest.mark.slow),
+])
+def test_the_single_envs_fast_step_equals_its_record_path(overrides):
+    """The lean step that builds no records (``SingleStep.step_lean``, :func:`pneunet_env.info.lean_info`) against
+    the same env stepping through records and :func:`pneunet_env.task.build_info`: every observation, reward, flag and
+    info (keys in order, values and types), and the state built afterwards (every field, of the same type), step for
+    step over random, clipped and zero actions, with the state read mid-episode on one env only."""
+    fast = gym.make("PneuNetGrasp-v0", **overrides)
+    slow = _record_path(gym.make("PneuNetGrasp-v0", **overrides))
+    rng = np.random.default_rng(5)
+    steps = failures = 0
+    for episode in range(8):
+        fa, fb = fast.reset(seed=episode), slow.reset(seed=episode)
+        assert np.array_equal(fa[0], fb[0]) and fa[1] == fb[1]
+        done = False
+        while not done:
+            a = np.array([rng.uniform(-1.4, 1.4) if rng.random() < 0.7 else 0.0], np.float32)
+            ra, rb = fast.step(a), slow.step(a)
+            assert ra[0].dtype == rb[0].dtype and ra[0].shape == rb[0].shape and np.array_equal(ra[0], rb[0])
+            assert ra[1:4] == rb[1:4] and [type(v) for v in ra[1:4]] == [type(v) for v in rb[1:4]]
+            assert list(ra[4]) == list(rb[4]), "the info's keys, in order"
+            for k, v in rb[4].items():
+                assert type(ra[4][k]) is type(v) and ra[4][k] == v, (k, ra[4][k], v)
+            if rng.random() < 0.3 or ra[2] or ra[3]:  # read the state mid-episode (the next step goes on from it)
+                _assert_same_record(fast.unwrapped.state, slow.unwrapped.state, "state")
+            failures += ra[4]["solver_failed"]
+            steps += 1
+            done = ra[2] or ra[3]
+    assert steps > (80 if "max_substeps" in overrides else 250)
+    assert (failures > 0) == ("max_substeps" in overrides)
+
+
+def test_the_single_envs_fast_step_survives_a_copy_and_a_pickle():
+    """A copy (``copy.deepcopy``) or a pickle taken between fast steps carries the packed state: both go on as the
+    original does."""
+    import copy
+    import pickle
+
+    env = gym.make("PneuNetGrasp-v0")
+    env.reset(seed=3)
+    for _ in range(20):
+        env.step(np.full(1, 0.8, np.float32))
+    copies = [copy.deepcopy(env), pickle.loads(pickle.dumps(env))]
+    for _ in range(15):
+        a = np.full(1, 0.4, np.float32)
+        r = env.step(a)
+        for c in copies:
+            rc = c.step(a)
+            assert np.array_equal(r[0], rc[0]) and r[1:4] == rc[1:4] and r[4] == rc[4]
+    for c in copies:
+        _assert_same_record(env.unwrapped.state, c.unwrapped.state, "state")
+
+
+def test_lean_info_is_the_tables_lean_rows():
+    """:func:`pneunet_env.info.lean_info` gives :data:`pneunet_env.info.LEAN_KEYS`, in order: a lean row added to the
+    table and not to it fails here."""
+    from pneunet_env.info import LEAN_KEYS, lean_info
+
+    info = lean_info(0.5, 0.1, 0.2, 0.01, True, 3, *([False] * 11), 50.0, 10.0)
+    assert tuple(info) == LEAN_KEYS
+    assert info["indentation_mm"] == 0.01 * 10.0
+    assert lean_info(0.5, 0.1, 0.2, 0.01, False, 3, *([False] * 11), 50.0, 10.0)["indentation_mm"] == 0.0

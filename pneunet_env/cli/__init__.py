@@ -194,6 +194,7 @@ def main(argv: list[str] | None = None) -> int:
     prog = f"{PROG} {name}"
     parser = _Parser(prog=prog, description=help_)
     module.add_arguments(parser)
+    restore = _note_interrupts()
     try:
         args = parser.parse_args(args_in)
         _resolve_config(args, name)
@@ -203,15 +204,14 @@ def main(argv: list[str] | None = None) -> int:
             raise  # some other pipe: a real error
         return 141  # the reader of stdout went away (``| head``): stop quietly, 128 + SIGPIPE, as a Unix command does
     except KeyboardInterrupt as exc:
-        from pneunet_env.locks import release_held
-
-        release_held()  # a lock whose with-statement's exit the interrupt cut at its start
         if _debug():
             raise
-        note = " ".join(str(a) for a in exc.args if str(a).strip())  # where the command left things, if it says
-        print(f"{prog}: interrupted" + (f" {note}" if note else ""), file=sys.stderr)
-        return 130  # 128 + SIGINT, as a shell reports it
+        return _interrupted(prog, " ".join(str(a) for a in exc.args if str(a).strip()))
     except (ValueError, TypeError, OverflowError) as exc:  # bad input, found by the command: one line naming it
+        if _INTERRUPTED[0] and not _debug():
+            # a Ctrl-C that compiled code turned into another error (matplotlib's drawing reports one that came
+            # during its C call as ValueError('Invalid bounding box')): an interrupt all the same, not bad input
+            return _interrupted(prog, "")
         if _debug():
             raise
         _fail(prog, str(exc) or type(exc).__name__)
@@ -221,6 +221,43 @@ def main(argv: list[str] | None = None) -> int:
         if _debug() or exc.code is None or isinstance(exc.code, int):
             raise  # a status alone: the command printed its message (argparse's --help, require_extra)
         _fail(prog, str(exc.code))
+    finally:
+        restore()
+
+
+_INTERRUPTED = [False]
+"""Whether a Ctrl-C (SIGINT) came during the command now running (:func:`_note_interrupts`)."""
+
+
+def _note_interrupts():
+    """Note each SIGINT in :data:`_INTERRUPTED`, then raise ``KeyboardInterrupt`` as Python's own handler does; returns
+    the function that puts the previous handler back. Only where Python's default handler is in place, in the main
+    thread (a caller's own handler, or a command run from a thread, is left alone)."""
+    import signal
+    import threading
+
+    _INTERRUPTED[0] = False
+    if threading.current_thread() is not threading.main_thread():
+        return lambda: None
+    previous = signal.getsignal(signal.SIGINT)
+    if previous is not signal.default_int_handler:
+        return lambda: None
+
+    def handler(signum, frame):
+        _INTERRUPTED[0] = True
+        raise KeyboardInterrupt
+
+    signal.signal(signal.SIGINT, handler)
+    return lambda: signal.signal(signal.SIGINT, previous)
+
+
+def _interrupted(prog: str, note: str) -> int:
+    """A command stopped by Ctrl-C: ``PROG CMD: interrupted [note]`` on stderr, status 130."""
+    from pneunet_env.locks import release_held
+
+    release_held()  # a lock whose with-statement's exit the interrupt cut at its start
+    print(f"{prog}: interrupted" + (f" {note}" if note else ""), file=sys.stderr)
+    return 130  # 128 + SIGINT, as a shell reports it
 
 
 def _resolve_config(args: argparse.Namespace, name: str) -> None:

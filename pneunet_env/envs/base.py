@@ -5,7 +5,9 @@
 (:class:`pneunet_env.envs.grasp.PneuNetGraspEnv`, :class:`pneunet_env.envs.rigid.RigidGraspEnv`) sets ``env_id``,
 ``metadata``, its :class:`~pneunet_env.task.EnvParams` (``_params``), its contact (``_contact``) and the spaces, and
 builds its info (:meth:`SingleGraspEnv._info`); it may check the object it is given (:meth:`_accept_object`) and
-keep what it needs of the new episode (:meth:`_after_reset`). Only this class writes ``_state`` and ``_ended``.
+keep what it needs of the new episode (:meth:`_after_reset`), and may step faster without building records
+(:meth:`_step_fast`: its state is then built when asked for, :meth:`_packed_state`). Only this class writes
+``_state`` and ``_ended``.
 """
 
 from __future__ import annotations
@@ -52,8 +54,21 @@ class SingleGraspEnv(gym.Env):
         self.action_space = spaces.Box(-1.0, 1.0, (1,), np.float32)
         self._params: task.EnvParams  # set by the subclass
         self._contact: task.Contact  # set by the subclass
-        self._state: task.EnvState | None = None
+        self._record: task.EnvState | None = None  # the state (see _state)
+        self._ahead = False  # the subclass's fast step moved the state past _record (see _step_fast)
         self._ended = False
+
+    # ---- the state --------------------------------------------------------------------------------
+    @property
+    def _state(self) -> task.EnvState | None:
+        """The current state's record: built from the subclass's packed state after fast steps (see _step_fast)."""
+        if self._ahead:
+            self._record, self._ahead = self._packed_state(), False
+        return self._record
+
+    @_state.setter
+    def _state(self, state: task.EnvState | None) -> None:
+        self._record, self._ahead = state, False
 
     # ---- the state, for users ----------------------------------------------------------------------
     @property
@@ -82,6 +97,19 @@ class SingleGraspEnv(gym.Env):
         """The info of the current state (``res``: the step that reached it; ``None`` on reset)."""
         raise NotImplementedError
 
+    def _step_fast(self, state: task.EnvState | None, action: float) -> tuple | None:
+        """``(obs, reward, terminated, truncated, info)`` of one step, as :meth:`step` returns them (with
+        ``is_success`` on an episode's last step), from a state the subclass keeps itself, without building the
+        :class:`~pneunet_env.task.Step`; ``None`` where it has no such step (the default), and :meth:`step` takes
+        :meth:`_step_state`. ``state``: the current state's record, or ``None`` where the current state is the one
+        the last fast step left. After a fast step, :meth:`_packed_state` gives the state's record when one is
+        needed."""
+        return None
+
+    def _packed_state(self) -> task.EnvState:
+        """The record of the state the last :meth:`_step_fast` left."""
+        raise NotImplementedError
+
     # ---- Gymnasium API -----------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         """A new episode: an object from ``self.np_random`` (``options`` pins its properties:
@@ -103,19 +131,26 @@ class SingleGraspEnv(gym.Env):
 
     def step(self, action):
         """One step of :func:`pneunet_env.task.step`. A torch tensor is read as its value (detached)."""
-        if self._state is None:
+        if self._record is None:
             raise ResetNeeded("call reset() before step()")
         if self._ended:
             raise ResetNeeded("the episode has ended (terminated or truncated): call reset() before step()")
         if is_torch(action):
             action = action.detach()  # a tensor that requires grad is read as its value (the env is not differentiable)
-        res = self._step_state(self._state, task.single_action(action))
-        self._state = res.state
-        info = self._info(res)
-        terminated, truncated = bool(res.terminated), bool(res.truncated)
+        a = task.single_action(action)
+        fast = self._step_fast(None if self._ahead else self._record, a)
+        if fast is not None:
+            self._ahead = True
+            obs, reward, terminated, truncated, info = fast
+        else:
+            res = self._step_state(self._state, a)
+            self._state = res.state
+            info = self._info(res)
+            obs, reward, terminated, truncated = res.obs, float(res.reward), bool(res.terminated), bool(res.truncated)
+            if terminated or truncated:
+                info["is_success"] = bool(res.outcome.success)
         if terminated or truncated:
-            info["is_success"] = bool(res.outcome.success)
             self._ended = True
         if self.render_mode == "human":
             self.render()
-        return res.obs, float(res.reward), terminated, truncated, info
+        return obs, reward, terminated, truncated, info

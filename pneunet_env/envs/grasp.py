@@ -211,6 +211,17 @@ class PneuNetGraspEnv(SingleGraspEnv):
             return super()._step_state(state, action)
         return self._single(state, action)
 
+    def _step_fast(self, state: task.EnvState | None, action: float) -> tuple | None:
+        # the lean info straight from the compiled call's numbers (the full info needs the step's records)
+        if self._single is None or self.info_level != "lean":
+            return None
+        if state is not None:
+            self._single.load(state)
+        return self._single.step_lean(action)
+
+    def _packed_state(self) -> task.EnvState:
+        return self._single.state()
+
     # ---- the episode's object ----------------------------------------------------------------------
     def _accept_object(self, obj) -> None:
         check_object(obj.stiffness, obj.curvature)

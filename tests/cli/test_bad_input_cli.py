@@ -374,6 +374,32 @@ def test_ctrl_c_is_one_line_with_status_130(monkeypatch):
     assert (what, rc, err) == ("exit", 130, "pneunet-grasp solve: interrupted\n")
 
 
+def test_a_ctrl_c_turned_into_another_error_is_still_an_interrupt(monkeypatch):
+    """A SIGINT that compiled code swallowed and reported as another error (matplotlib's drawing raises
+    ``ValueError('Invalid bounding box')`` for one that came during its C call; CI's interrupt test met it once) is
+    reported as the interrupt it was, status 130; the same error with no Ctrl-C is bad input, status 2. The handler
+    that notes the SIGINT is Python's own again afterwards."""
+    import os
+    import signal
+
+    from pneunet_env.cli import solve
+
+    def run(args):
+        try:
+            os.kill(os.getpid(), signal.SIGINT)
+            signal.pthread_sigmask(signal.SIG_BLOCK, [])  # (a call: the pending handler runs by now)
+        except KeyboardInterrupt:
+            raise ValueError("Invalid bounding box") from None
+
+    monkeypatch.delenv(DEBUG_ENV, raising=False)
+    monkeypatch.setattr(solve, "run", run)
+    assert _call(["solve"]) == ("exit", 130, "pneunet-grasp solve: interrupted\n")
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+    monkeypatch.setattr(solve, "run", _raising(ValueError("Invalid bounding box")))
+    what, rc, err = _call(["solve"])
+    assert rc == 2 and "Invalid bounding box" in err
+
+
 def test_a_status_without_a_message_passes_through(monkeypatch):
     from pneunet_env.cli import solve
 
