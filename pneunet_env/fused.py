@@ -521,7 +521,7 @@ class SingleStep:
 
     def _advance(self, action: float) -> None:
         """The compiled step of the state held, in place (``action``: a float, checked here)."""
-        a = check_action(action)
+        a = action if type(action) is float and math.isfinite(action) else check_action(action)  # (it names a bad one)
         self._call(self._x, a, self._params, self._table, self._c, self._valid, self._f, self._n, self._b,
                    self._obs_rows)
         self._state = None

@@ -135,7 +135,7 @@ class SingleGraspEnv(gym.Env):
             raise ResetNeeded("call reset() before step()")
         if self._ended:
             raise ResetNeeded("the episode has ended (terminated or truncated): call reset() before step()")
-        if is_torch(action):
+        if type(action) is not np.ndarray and is_torch(action):
             action = action.detach()  # a tensor that requires grad is read as its value (the env is not differentiable)
         a = task.single_action(action)
         fast = self._step_fast(None if self._ahead else self._record, a)
