@@ -94,7 +94,7 @@ def single_action(action) -> float:
     :func:`update_pressure`.) The common case, a float array of shape ``(1,)``, is read directly.
     """
     if type(action) is np.ndarray and action.shape == (1,) and action.dtype.kind == "f":
-        return float(action[0])
+        return action.item()  # (a Python float, exactly the array's number)
     if type(action) in (float, int):
         try:
             return float(action)
