@@ -43,7 +43,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from pneunet_env import task, task_objects
+from pneunet_env import config, task, task_objects
 from pneunet_env.actions import check_action
 from pneunet_env.config import EnvConfig
 from pneunet_env.info import lean_info
@@ -234,8 +234,10 @@ def _make_loop(stamp: int, variant: int):
     return _loop
 
 
-_SOURCES = (mechanics, contact, _solver, free_table, _jit, xp, task, task_objects, sys.modules[__name__])
-"""The sources the compiled steps are built from (they key numba's disk cache: see ``_jit.njit_cached``)."""
+_SOURCES = (mechanics, contact, _solver, free_table, _jit, xp, config, task, task_objects, sys.modules[__name__])
+"""The sources the compiled steps are built from (they key numba's disk cache: see ``_jit.njit_cached``). ``config``
+too: the task's params are its task section's fields, in their order, and the compiled code reads them by
+position."""
 
 if HAVE_NUMBA:
     import numba
@@ -497,6 +499,15 @@ class SingleStep:
         self._call = _single_for(*self._key)
         self._obs_rows = self._obs.reshape(1, -1)
 
+    def __copy__(self) -> SingleStep:
+        """A copy with its own packed state, cache and scratch arrays (the records, immutable, are shared)."""
+        new = object.__new__(SingleStep)
+        new.__dict__.update(self.__dict__)
+        for name in ("_x", "_c", "_valid", "_f", "_n", "_b", "_obs"):
+            setattr(new, name, getattr(self, name).copy())
+        new._obs_rows = new._obs.reshape(1, -1)
+        return new
+
     def load(self, state: task.EnvState) -> None:
         """Hold ``state`` (packed), with the cache emptied, unless it is the record of the state already held."""
         if state is self._state:
@@ -522,9 +533,10 @@ class SingleStep:
     def _advance(self, action: float) -> None:
         """The compiled step of the state held, in place (``action``: a float, checked here)."""
         a = action if type(action) is float and math.isfinite(action) else check_action(action)  # (it names a bad one)
+        # forgotten first: a Ctrl-C is raised as the call returns, and the record held would then be a step behind
+        self._state = None
         self._call(self._x, a, self._params, self._table, self._c, self._valid, self._f, self._n, self._b,
                    self._obs_rows)
-        self._state = None
 
     def __call__(self, state: task.EnvState, action: float) -> task.Step:
         """One step from ``state`` with ``action`` (a float; NaN and inf raise ``ValueError``, as

@@ -253,8 +253,8 @@ def test_the_single_envs_fast_step_equals_its_record_path(overrides):
 
 
 def test_the_single_envs_fast_step_survives_a_copy_and_a_pickle():
-    """A copy (``copy.deepcopy``) or a pickle taken between fast steps carries the packed state: both go on as the
-    original does."""
+    """A copy (``copy.copy`` of the env, ``copy.deepcopy``) or a pickle taken between fast steps carries the packed
+    state: each goes on as the original does, and stepping one moves no other."""
     import copy
     import pickle
 
@@ -262,7 +262,7 @@ def test_the_single_envs_fast_step_survives_a_copy_and_a_pickle():
     env.reset(seed=3)
     for _ in range(20):
         env.step(np.full(1, 0.8, np.float32))
-    copies = [copy.deepcopy(env), pickle.loads(pickle.dumps(env))]
+    copies = [copy.copy(env.unwrapped), copy.deepcopy(env), pickle.loads(pickle.dumps(env))]
     for _ in range(15):
         a = np.full(1, 0.4, np.float32)
         r = env.step(a)
@@ -282,3 +282,49 @@ def test_lean_info_is_the_tables_lean_rows():
     assert tuple(info) == LEAN_KEYS
     assert info["indentation_mm"] == 0.01 * 10.0
     assert lean_info(0.5, 0.1, 0.2, 0.01, False, 3, *([False] * 11), 50.0, 10.0)["indentation_mm"] == 0.0
+
+
+def test_a_ctrl_c_as_the_compiled_call_returns_leaves_the_env_consistent():
+    """A ``KeyboardInterrupt`` is raised as the compiled call returns (CPython handles a signal then). The step is then
+    not taken, as far as the env is concerned: its state is the one before, and the next step goes on from that
+    state, not from the packed one the call had already moved."""
+    env = gym.make("PneuNetGrasp-v0").unwrapped
+    env.reset(seed=2)
+    a = np.full(1, 0.7, np.float32)
+    for _ in range(5):
+        env.step(a)
+    single = env._single
+    call = single._call
+
+    def interrupted(*args):
+        call(*args)
+        raise KeyboardInterrupt
+
+    single._call = interrupted
+    before = env.state
+    with pytest.raises(KeyboardInterrupt):
+        env.step(a)
+    single._call = call
+    assert env.state is before
+    _, _, _, _, info = env.step(a)
+    assert info["step"] == before.task.step + 1
+    assert env.state.eq.pressure == pytest.approx(before.eq.pressure + 0.7 * 3.0 / 50.0)
+
+
+def test_a_subclass_with_its_own_info_takes_the_record_path():
+    """The lean step builds its info itself: a subclass that overrides ``_info`` (or ``_step_state``) is stepped
+    through the records, so that its override is called."""
+    from pneunet_env.envs.grasp import PneuNetGraspEnv
+
+    class Tagged(PneuNetGraspEnv):
+        def _info(self, res):
+            info = super()._info(res)
+            info["tag"] = True
+            return info
+
+    env = Tagged()
+    env.reset(seed=0)
+    assert env.step(np.ones(1, np.float32))[4]["tag"] is True
+    plain = PneuNetGraspEnv()
+    plain.reset(seed=0)
+    assert "tag" not in plain.step(np.ones(1, np.float32))[4] and plain._own_step

@@ -194,7 +194,7 @@ def main(argv: list[str] | None = None) -> int:
     prog = f"{PROG} {name}"
     parser = _Parser(prog=prog, description=help_)
     module.add_arguments(parser)
-    restore = _note_interrupts()
+    interrupt_seen, stop_noting = _note_interrupts()
     try:
         args = parser.parse_args(args_in)
         _resolve_config(args, name)
@@ -208,7 +208,7 @@ def main(argv: list[str] | None = None) -> int:
             raise
         return _interrupted(prog, " ".join(str(a) for a in exc.args if str(a).strip()))
     except (ValueError, TypeError, OverflowError) as exc:  # bad input, found by the command: one line naming it
-        if _INTERRUPTED[0] and not _debug():
+        if not _debug() and interrupt_seen():
             # a Ctrl-C that compiled code turned into another error (matplotlib's drawing reports one that came
             # during its C call as ValueError('Invalid bounding box')): an interrupt all the same, not bad input
             return _interrupted(prog, "")
@@ -222,33 +222,51 @@ def main(argv: list[str] | None = None) -> int:
             raise  # a status alone: the command printed its message (argparse's --help, require_extra)
         _fail(prog, str(exc.code))
     finally:
-        restore()
-
-
-_INTERRUPTED = [False]
-"""Whether a Ctrl-C (SIGINT) came during the command now running (:func:`_note_interrupts`)."""
+        stop_noting()
 
 
 def _note_interrupts():
-    """Note each SIGINT in :data:`_INTERRUPTED`, then raise ``KeyboardInterrupt`` as Python's own handler does; returns
-    the function that puts the previous handler back. Only where Python's default handler is in place, in the main
-    thread (a caller's own handler, or a command run from a thread, is left alone)."""
+    """Start noting the signals that reach Python during the command (``signal.set_wakeup_fd``: the interpreter
+    writes each signal's number to a pipe, whatever its handler does); returns ``(seen, stop)``: ``seen()`` tells
+    whether a SIGINT came since, ``stop()`` ends the noting. The handlers are left as they are (``deferred_interrupt``
+    holds a Ctrl-C only under Python's own). Only in the main thread, and where no wakeup fd is set already (an event
+    loop's): elsewhere ``seen()`` is always false."""
     import signal
     import threading
 
-    _INTERRUPTED[0] = False
+    nothing = (lambda: False), (lambda: None)
     if threading.current_thread() is not threading.main_thread():
-        return lambda: None
-    previous = signal.getsignal(signal.SIGINT)
-    if previous is not signal.default_int_handler:
-        return lambda: None
+        return nothing
+    r, w = os.pipe()
+    os.set_blocking(r, False)
+    os.set_blocking(w, False)
+    try:
+        previous = signal.set_wakeup_fd(w, warn_on_full_buffer=False)
+    except (ValueError, OSError):
+        os.close(r)
+        os.close(w)
+        return nothing
+    if previous != -1:  # someone else's: theirs again
+        signal.set_wakeup_fd(previous)
+        os.close(r)
+        os.close(w)
+        return nothing
+    noted = bytearray()
 
-    def handler(signum, frame):
-        _INTERRUPTED[0] = True
-        raise KeyboardInterrupt
+    def seen() -> bool:
+        try:
+            while chunk := os.read(r, 512):
+                noted.extend(chunk)
+        except BlockingIOError:
+            pass
+        return signal.SIGINT in noted
 
-    signal.signal(signal.SIGINT, handler)
-    return lambda: signal.signal(signal.SIGINT, previous)
+    def stop() -> None:
+        signal.set_wakeup_fd(-1)
+        os.close(r)
+        os.close(w)
+
+    return seen, stop
 
 
 def _interrupted(prog: str, note: str) -> int:

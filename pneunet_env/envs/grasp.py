@@ -8,6 +8,7 @@ docs of the task, nothing of the physics or the rules.
 
 from __future__ import annotations
 
+import copy
 from typing import Any
 
 import gymnasium as gym
@@ -199,6 +200,8 @@ class PneuNetGraspEnv(SingleGraspEnv):
         # with numba, the step as one compiled call (pneunet_env.fused.SingleStep): task.step's result (bit for bit
         # without the free table; with it, a free step is the same minimum to the solver's tolerance)
         self._single = fused.SingleStep(self._params) if fused.HAVE_FUSED else None
+        cls = type(self)
+        self._own_step = cls._step_state is PneuNetGraspEnv._step_state and cls._info is PneuNetGraspEnv._info
         self._class_names = task.class_names(self.config)
         self.observation_space = observation_space(self.config)
         self._warned = False
@@ -212,8 +215,9 @@ class PneuNetGraspEnv(SingleGraspEnv):
         return self._single(state, action)
 
     def _step_fast(self, state: task.EnvState | None, action: float) -> tuple | None:
-        # the lean info straight from the compiled call's numbers (the full info needs the step's records)
-        if self._single is None or self.info_level != "lean":
+        # the lean info straight from the compiled call's numbers (the full info needs the step's records; a subclass
+        # with a step or an info of its own gets the record path, which calls them)
+        if self._single is None or self.info_level != "lean" or not self._own_step:
             return None
         if state is not None:
             self._single.load(state)
@@ -221,6 +225,16 @@ class PneuNetGraspEnv(SingleGraspEnv):
 
     def _packed_state(self) -> task.EnvState:
         return self._single.state()
+
+    def __copy__(self) -> PneuNetGraspEnv:
+        """A shallow copy, as ``copy.copy`` makes, but with its own compiled step: the state it steps is packed there
+        (after fast steps, the env's state lives only there), so sharing it would step the original too."""
+        fields = dict(self.__dict__)
+        if self._single is not None:
+            fields["_single"] = copy.copy(self._single)
+        new = object.__new__(type(self))
+        new.__dict__.update(fields)
+        return new
 
     # ---- the episode's object ----------------------------------------------------------------------
     def _accept_object(self, obj) -> None:

@@ -372,17 +372,6 @@ def test_a_second_seed_study_on_the_same_folder_is_refused(tmp_path):
     assert not (tmp_path / "study").exists()
 
 
-@pytest.fixture
-def python_ctrl_c():
-    """Python's own Ctrl-C handler for the test (a run started in the background of a non-interactive shell inherits
-    SIGINT ignored, and Python then leaves it so), restored afterwards."""
-    import signal
-
-    before = signal.signal(signal.SIGINT, signal.default_int_handler)
-    yield
-    signal.signal(signal.SIGINT, before)
-
-
 def test_deferred_interrupt_holds_ctrl_c_until_the_block_is_done(tmp_path, python_ctrl_c):
     import signal
 
