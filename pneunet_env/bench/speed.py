@@ -278,6 +278,11 @@ def _workload(infos, acc: _Accuracy | None) -> dict[str, Any]:
 CONTINUATION = "continuation"
 """The variant measured beside the default at the largest N, on numba: the env without the free actuator's table
 (``free_table=False``: every step the continuation's), so that one run gives what the table buys."""
+BRANCH = "branch"
+"""The other variant measured there: the solver's ``step_control="branch"`` (longer sub-steps on one branch; the
+compiled solver's option, not the default), so that one run gives what it buys."""
+VARIANTS = {CONTINUATION: {"free_table": False}, BRANCH: {"step_control": "branch"}}
+"""The variants at the largest N (numba), by name: their config overrides."""
 
 
 def bench_vector(num_envs: tuple[int, ...], env_steps: int, min_steps: int, repeats: int, seed: int = 0,
@@ -286,9 +291,10 @@ def bench_vector(num_envs: tuple[int, ...], env_steps: int, min_steps: int, repe
     """Env-steps per second of the batched env (per workload in ``policies``) and of CartPole's vector env (random
     actions) at each N, and each workload's per-env-step solver counts (an untimed pass at the full info level).
 
-    With ``compare`` (and numba), at the largest N the same workloads also run without the free actuator's table
-    (:data:`CONTINUATION`), in the same rounds: ``steps_per_s["PneuNetGrasp-v0 <workload>, continuation"]``,
-    ``ratio_continuation`` and ``workload_continuation``."""
+    With ``compare`` (and numba), at the largest N the same workloads also run in each of :data:`VARIANTS` (without
+    the free actuator's table, :data:`CONTINUATION`; with the branch step control, :data:`BRANCH`), in the same
+    rounds: ``steps_per_s["PneuNetGrasp-v0 <workload>, <variant>"]``, ``ratio_<variant>`` and
+    ``workload_<variant>``."""
     import gymnasium as gym
 
     import pneunet_env  # noqa: F401
@@ -308,9 +314,10 @@ def bench_vector(num_envs: tuple[int, ...], env_steps: int, min_steps: int, repe
         cp_actions = rng.integers(0, 2, (steps, n))
         runs = [(f"PneuNetGrasp-v0 {p}", pn, pn_actions, ramp if p == "ramp" else None) for p in policies]
         variant = compare and n == max(num_envs) and getattr(pn.unwrapped, "fused", False) and HAVE_NUMBA
-        if variant:
-            pn_c = gym.make_vec("PneuNetGrasp-v0", num_envs=n, backend=backend, free_table=False)
-            runs += [(f"PneuNetGrasp-v0 {p}, {CONTINUATION}", pn_c, pn_actions, ramp if p == "ramp" else None)
+        variants = VARIANTS if variant else {}
+        others = {v: gym.make_vec("PneuNetGrasp-v0", num_envs=n, backend=backend, **kw) for v, kw in variants.items()}
+        for v, env_v in others.items():
+            runs += [(f"PneuNetGrasp-v0 {p}, {v}", env_v, pn_actions, ramp if p == "ramp" else None)
                      for p in policies]
         runs.append(("CartPole-v1", cp, cp_actions, None))
         rates: dict[str, list[float]] = {name: [] for name, *_ in runs}
@@ -321,25 +328,24 @@ def bench_vector(num_envs: tuple[int, ...], env_steps: int, min_steps: int, repe
                 dt = _vector_run(env, acts, None, policy, obs)
                 rates[name].append(n * steps / dt)
         workloads: dict[str, Any] = {}
-        workloads_c: dict[str, Any] = {}
+        workloads_v: dict[str, dict[str, Any]] = {v: {} for v in variants}
         if acc is not None:  # the same steps again, untimed, with the full info (solver diagnostics and counts),
             # over at least one whole episode (a short timed run sees only the ramp's start)
             w_actions = pn_actions if steps >= WORKLOAD_MIN_STEPS else np.concatenate(
                 [pn_actions, rng.uniform(-1.0, 1.0, (WORKLOAD_MIN_STEPS - steps, n, 1)).astype(np.float32)])
             for p in policies:
-                for table in ((True, False) if variant else (True,)):
-                    full = gym.make_vec("PneuNetGrasp-v0", num_envs=n, backend=backend, info_level="full",
-                                        free_table=table)
+                for v, kw in {None: {}, **variants}.items():
+                    full = gym.make_vec("PneuNetGrasp-v0", num_envs=n, backend=backend, info_level="full", **kw)
                     obs, _ = full.reset(seed=seed)
                     work = _Work(acc)
                     _vector_run(full, w_actions, work, ramp if p == "ramp" else None, obs)
                     full.close()
-                    (workloads if table else workloads_c)[p] = work.result()
+                    (workloads if v is None else workloads_v[v])[p] = work.result()
         state_bytes = pn.unwrapped.state_nbytes()
         pn.close()
         cp.close()
-        if variant:
-            pn_c.close()
+        for env_v in others.values():
+            env_v.close()
         best = {k: max(v) for k, v in rates.items()}
         cart = best["CartPole-v1"]
         row = {
@@ -352,9 +358,9 @@ def bench_vector(num_envs: tuple[int, ...], env_steps: int, min_steps: int, repe
             "state_bytes_per_env": state_bytes / n,
             "workload": workloads,
         }
-        if variant:
-            row["ratio_continuation"] = {p: best[f"PneuNetGrasp-v0 {p}, {CONTINUATION}"] / cart for p in policies}
-            row["workload_continuation"] = workloads_c
+        for v in variants:
+            row[f"ratio_{v}"] = {p: best[f"PneuNetGrasp-v0 {p}, {v}"] / cart for p in policies}
+            row[f"workload_{v}"] = workloads_v[v]
         rows.append(row)
         if progress is not None:
             progress.update(1)
@@ -552,10 +558,19 @@ def format_table(res: dict[str, Any]) -> str:
             with_, without = r[f"PneuNetGrasp-v0 {p}"], r[f"PneuNetGrasp-v0 {p}, {CONTINUATION}"]
             lines.append(f"  {p:<8}{_fmt_rate(with_):>12} ({q[p]:.3f}x)  without {_fmt_rate(without):>12} "
                          f"({qc[p]:.3f}x)   {with_ / without:.2f}x faster")
+    if f"ratio_{BRANCH}" in last:
+        r, q, qb = last["steps_per_s"], last["ratio"], last[f"ratio_{BRANCH}"]
+        lines += ["", f"the solver's step control at N = {last['num_envs']:,}, same rounds: jump (the default) and "
+                      f"{BRANCH} (step_control='{BRANCH}': longer sub-steps on one branch)"]
+        for p in qb:
+            jump, branch = r[f"PneuNetGrasp-v0 {p}"], r[f"PneuNetGrasp-v0 {p}, {BRANCH}"]
+            lines.append(f"  {p:<8}{_fmt_rate(jump):>12} ({q[p]:.3f}x)  {BRANCH} {_fmt_rate(branch):>13} "
+                         f"({qb[p]:.3f}x)   {branch / jump:.2f}x")
     work = last.get("workload") or {}
     if work:
         work_c = {f"{p}, no table": w for p, w in (last.get("workload_continuation") or {}).items()}
-        columns = {**work, **work_c}
+        work_b = {f"{p}, {BRANCH}": w for p, w in (last.get(f"workload_{BRANCH}") or {}).items()}
+        columns = {**work, **work_c, **work_b}
         keys = [k for k in ("energy_evaluations", "newton_iterations", "substeps", "backtracks", "contact_share",
                             "unchanged_pressure_share", "episode_end_share")
                 if any(k in w for w in columns.values())]

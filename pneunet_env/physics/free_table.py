@@ -153,7 +153,9 @@ def build_free_table(prm: ActuatorNumbers, opts: tuple, pressure_max: float, spa
     m = min(int(math.ceil(min(pressure_max / spacing, MAX_NODES) - 1e-9)) + 1, MAX_NODES)
     while m < MAX_NODES and (m - 1) * spacing < pressure_max:  # the last node at or above p_max, not an ulp below
         m += 1
-    opts = tuple(opts[:7]) + (min(int(opts[7]), NODE_SUBSTEPS),)  # SolverOptions.as_tuple(): max_substeps last
+    # SolverOptions.as_tuple(): max_substeps bounded; the step control today's (the tabulated path is short sub-steps
+    # anyway: the nodes are 5e-4 apart)
+    opts = tuple(opts[:7]) + (min(int(opts[7]), NODE_SUBSTEPS), 0)
     nodes = np.empty((m, len(NODE_FIELDS)))
     end = _tabulate(prm, opts, spacing, BRANCH_AGREEMENT, nodes)
     if end < 2:
@@ -244,7 +246,7 @@ def make_follow_table(evaluate, descend, jit):
 
     @jit
     def follow_table(k, s, p0, p1, prm, kobj, ko, opts, nodes, spacing):
-        gtol, _, corr_iter, _, _, max_jump, eig_floor, _ = opts
+        gtol, _, corr_iter, _, _, max_jump, eig_floor, _, _ = opts
         top = (nodes.shape[0] - 1) * spacing
         if nodes.shape[0] < 2 or not (k < ko and p0 <= top and p1 <= top):
             return not_taken(k, s, 0, 0)

@@ -52,6 +52,7 @@ from pneunet_env.physics.solver import (
     STATUS_ROUNDOFF,
     STATUS_STALLED,
     STEP_AFTER_FOLD,
+    STEP_CONTROLS,
     Solve,
     make_sym2,
 )
@@ -295,7 +296,7 @@ def _follow_loop(m, corr_iter, min_step, max_jump, max_substeps, ops: Ops) -> No
 def _round(m, prm, opts, ops: Ops, kern) -> None:
     """One round: evaluate every env's pending point, then advance every env's control flow (in place in ``m``)."""
     terms, eigvals, eigvec = kern.terms, kern.eigvals, kern.eigvec
-    gtol, max_iter, corr_iter, max_step, min_step, max_jump, eig_floor, max_substeps = opts
+    gtol, max_iter, corr_iter, max_step, min_step, max_jump, eig_floor, max_substeps, _ = opts
     ev = terms(m["xk"], m["xs"], m["xp"], *prm, m["kobj"], m["ko"])
     m["evals"] = ops.where(m["pos"] <= _E_TRIAL, m["evals"] + 1, m["evals"])  # the envs waiting for it (not _DONE)
     _after_evaluation(m, ev, ops, eigvals)
@@ -339,7 +340,10 @@ def solve_masked(k, s, p0, p1, kobj, ko, prm, opts, active, ops: Ops, *, compact
     n = k.shape[0]
     kern = kernels(ops)
     step = _round if round_fn is None else round_fn
-    gtol, max_iter, corr_iter, max_step, min_step, max_jump, eig_floor, max_substeps = opts
+    gtol, max_iter, corr_iter, max_step, min_step, max_jump, eig_floor, max_substeps, control = opts
+    if control != 0:
+        raise ValueError(f"solver step_control {STEP_CONTROLS[control]!r} is the compiled solver's only (the numba "
+                         f"backend); the numpy and torch backends follow step_control {STEP_CONTROLS[0]!r}")
     m: dict[str, Any] = {name: ops.full(n, 0.0, "float") for name in _FLOAT}
     m.update({name: ops.full(n, 0, "int") for name in _INT})
     m.update({name: ops.full(n, False, "bool") for name in _BOOL})

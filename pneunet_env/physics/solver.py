@@ -91,6 +91,14 @@ STEP_AFTER_FOLD = 0.1
 """After a snap-through the next sub-step is this fraction of ``max_step``."""
 LAST_STEP_SLACK = 1e-12
 """A sub-step within this relative slack of the remaining pressure lands exactly on the target."""
+BRANCH_PREDICTED_CHANGE = 0.1
+"""``step_control="branch"``: a sub-step is sized so that the tangent predicts a state change of at most this (the
+state is of order 0.01-1), instead of ``PREDICTED_JUMP_FRACTION * max_jump``."""
+BRANCH_MIDPOINT_FRACTION = 0.25
+"""``step_control="branch"``: the Newton correction at the middle of a long sub-step's Hermite interpolant must be at
+most this fraction of ``max_jump`` (one branch: between two branches the interpolant's middle is far from both)."""
+STEP_CONTROLS = ("jump", "branch")
+""":attr:`SolverOptions.step_control`'s values, by their code in :meth:`SolverOptions.as_tuple`."""
 
 STATUS_INACTIVE = -1
 STATUS_CONVERGED = 0
@@ -163,6 +171,14 @@ class SolverOptions:
             the continuation for every step, bit for bit the array step's. The continuation's own calls
             (:func:`solve_equilibrium`, :func:`step_state`, the array step) do not read it; it is not part of
             :meth:`as_tuple`.
+        step_control: How long a continuation sub-step may be. ``"jump"`` (the default): a sub-step is accepted
+            only if the state moved at most ``max_jump`` from its start, and sized so that the tangent predicts
+            ``0.75 max_jump``. ``"branch"``: also a longer one (a predicted change up to
+            :data:`BRANCH_PREDICTED_CHANGE`) whose corrector converged within ``max_jump`` of its predictor and whose
+            two ends lie on one branch (the Newton correction at the middle of their cubic Hermite interpolant is
+            at most :data:`BRANCH_MIDPOINT_FRACTION` ``max_jump``); folds are found and ``snapped`` set as before.
+            About half the evaluations where the path is steep (contact: ``docs/studies/step-control``). The
+            compiled solver only (numba): the numpy and torch backends' masked solver refuses it.
     """
 
     gtol: float = 1e-11
@@ -174,8 +190,11 @@ class SolverOptions:
     eig_floor: float = 1e-10
     max_substeps: int = 10_000
     free_table: bool = True
+    step_control: str = "jump"
 
     def __post_init__(self) -> None:
+        if not isinstance(self.step_control, str) or self.step_control not in STEP_CONTROLS:
+            raise ValueError(f"SolverOptions.step_control must be one of {STEP_CONTROLS}, got {self.step_control!r}")
         if type(self.free_table).__name__ not in ("bool", "bool_"):
             raise ValueError(f"SolverOptions.free_table must be true or false, got {self.free_table!r}")
         object.__setattr__(self, "free_table", bool(self.free_table))
@@ -202,7 +221,8 @@ class SolverOptions:
             raise ValueError(f"SolverOptions.min_step={self.min_step!r} exceeds max_step={self.max_step!r}")
 
     def as_tuple(self) -> tuple:
-        """The continuation's numbers in order, as the compiled solver takes them (all fields but ``free_table``)."""
+        """The continuation's numbers in order, as the compiled solver takes them (all fields but ``free_table``;
+        ``step_control`` as its index in :data:`STEP_CONTROLS`)."""
         return (
             float(self.gtol),
             int(self.max_iter),
@@ -212,6 +232,7 @@ class SolverOptions:
             float(self.max_jump),
             float(self.eig_floor),
             int(self.max_substeps),
+            STEP_CONTROLS.index(self.step_control),
         )
 
 
@@ -449,10 +470,36 @@ def _make_parts(terms, jit=njit):
                        1 + r.evaluations, r.backtracks)
 
     @jit
+    def _one_branch(k, s, tk, ts, p, r, pt, prm, kobj, ko, max_jump):
+        # Whether a long sub-step's ends, (k, s) at p with tangent (tk, ts) and r's state at pt, lie on one branch:
+        # the Newton correction at the middle of their cubic Hermite interpolant is at most
+        # BRANCH_MIDPOINT_FRACTION max_jump (both Hessians positive definite). Returns (accept, evaluations).
+        e1 = r.evaluation
+        d1 = e1.h_kk * e1.h_ss - e1.h_ks * e1.h_ks
+        if not (e1.h_kk > 0.0 and d1 > 0.0):
+            return False, 0
+        t1k = (e1.h_ss * e1.v_kappa - e1.h_ks * e1.v_strain) / d1
+        t1s = (e1.h_kk * e1.v_strain - e1.h_ks * e1.v_kappa) / d1
+        dp = pt - p
+        km = 0.5 * (k + r.kappa) + dp / 8.0 * (tk - t1k)
+        sm = 0.5 * (s + r.side_strain) + dp / 8.0 * (ts - t1s)
+        em = evaluate(km, sm, 0.5 * (p + pt), prm, kobj, ko)
+        if not em.ok:
+            return False, 1
+        dm = em.h_kk * em.h_ss - em.h_ks * em.h_ks
+        if not (em.h_kk > 0.0 and dm > 0.0):
+            return False, 1
+        ck = (em.h_ss * em.g_kappa - em.h_ks * em.g_strain) / dm
+        cs = (em.h_kk * em.g_strain - em.h_ks * em.g_kappa) / dm
+        return max(abs(ck), abs(cs)) <= BRANCH_MIDPOINT_FRACTION * max_jump, 1
+
+    @jit
     def follow_from(k, s, p0, p1, prm, kobj, ko, opts, ev0):
         # follow_ev from a start whose evaluation ev0 = evaluate(k, s, p0, ...) is known (a cache of the previous
         # step's last one); returns follow_ev's tuple and the evaluation at the answer.
-        gtol, max_iter, corr_iter, max_step, min_step, max_jump, eig_floor, max_substeps = opts
+        gtol, max_iter, corr_iter, max_step, min_step, max_jump, eig_floor, max_substeps, control = opts
+        # control 1 ("branch"): a predicted change up to BRANCH_PREDICTED_CHANGE, accepted when one branch (below)
+        predicted_limit = PREDICTED_JUMP_FRACTION * max_jump if control == 0 else BRANCH_PREDICTED_CHANGE
         # Polish the start so that the tangent is taken at an equilibrium (at an equilibrium: one evaluation).
         k, s, U, gn, lmin, iters, status, ev, n_eval, n_back = descend(k, s, p0, prm, kobj, ko, gtol, max_iter,
                                                                        eig_floor, ev0, k, s, math.inf)
@@ -476,9 +523,9 @@ def _make_parts(terms, jit=njit):
                 tk = (hss * vk - hks * vs) / det
                 ts = (hkk * vs - hks * vk) / det
                 rate = max(abs(tk), abs(ts))
-                # Size the sub-step so that the predicted change stays well inside max_jump.
-                if h * rate > PREDICTED_JUMP_FRACTION * max_jump:
-                    h = max(PREDICTED_JUMP_FRACTION * max_jump / rate, min_step)
+                # Size the sub-step so that the predicted change stays well inside max_jump (or the long limit).
+                if h * rate > predicted_limit:
+                    h = max(predicted_limit / rate, min_step)
             remaining = abs(p1 - p)
             pt = p1 if h >= remaining * (1.0 - LAST_STEP_SLACK) else p + sign * h
             started = False
@@ -488,7 +535,9 @@ def _make_parts(terms, jit=njit):
                 evc = evaluate(kc, sc, pt, prm, kobj, ko)
                 n_eval += 1
                 if evc.ok:
-                    r = descend(kc, sc, pt, prm, kobj, ko, gtol, corr_iter, eig_floor, evc, k, s, max_jump)
+                    # the corrector kept within max_jump of the start ("jump") or of the predictor ("branch")
+                    k0, s0 = (k, s) if control == 0 else (kc, sc)
+                    r = descend(kc, sc, pt, prm, kobj, ko, gtol, corr_iter, eig_floor, evc, k0, s0, max_jump)
                     started = True
             if not started:
                 evs = evaluate(k, s, pt, prm, kobj, ko)
@@ -498,7 +547,12 @@ def _make_parts(terms, jit=njit):
             n_eval += r.evaluations
             n_back += r.backtracks
             jump = max(abs(r.kappa - k), abs(r.side_strain - s))
-            if r.status <= STATUS_ROUNDOFF and jump <= max_jump:
+            accept = r.status <= STATUS_ROUNDOFF and jump <= max_jump
+            if control == 1 and started and not accept and r.status <= STATUS_ROUNDOFF and max(
+                    abs(r.kappa - kc), abs(r.side_strain - sc)) <= max_jump:
+                accept, n_mid = _one_branch(k, s, tk, ts, p, r, pt, prm, kobj, ko, max_jump)
+                n_eval += n_mid
+            if accept:
                 p = pt
                 k, s, U, gn, lmin, status, ev = r.kappa, r.side_strain, r.energy, r.gradient_norm, r.min_eigenvalue, \
                     r.status, r.evaluation

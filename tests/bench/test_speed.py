@@ -76,7 +76,12 @@ def test_json_holds_every_figure(quick_run):
             # the same steps, the table's work against the continuation's (counts, not times)
             w, wc = last["workload"][p], last["workload_continuation"][p]
             assert w["contact_share"] == wc["contact_share"] and w["energy_evaluations"] < wc["energy_evaluations"]
-        assert "the free actuator's table" in quick_run[2]
+            # the branch step control, likewise (the same steps: the same contact; its work measured, not asserted)
+            branch = last["steps_per_s"][f"PneuNetGrasp-v0 {p}, {speed.BRANCH}"]
+            assert last[f"ratio_{speed.BRANCH}"][p] == pytest.approx(branch / last["steps_per_s"]["CartPole-v1"])
+            wb = last[f"workload_{speed.BRANCH}"][p]
+            assert wb["contact_share"] == pytest.approx(w["contact_share"], abs=1e-4) and wb["energy_evaluations"] > 0
+        assert "the free actuator's table" in quick_run[2] and "the solver's step control" in quick_run[2]
 
 
 @pytest.mark.slow  # the benchmark's end-to-end quick run (its fixture takes 5-11 s)

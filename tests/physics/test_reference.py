@@ -6,6 +6,7 @@ import pytest
 
 from pneunet_env import ActuatorParams, solve_equilibrium
 from pneunet_env.physics.reference import reference_path
+from pneunet_env.physics.solver import SolverOptions
 
 mpmath = pytest.importorskip("mpmath")
 from pneunet_env.physics.reference import reference_minimum  # noqa: E402
@@ -26,22 +27,28 @@ from pneunet_env.physics.reference import reference_minimum  # noqa: E402
         (5.0, 0.0, 2.0),  # against the Gent limit
     ],
 )
-def test_solver_matches_30_digit_reference(p, kobj, J):
+@pytest.mark.parametrize("control", ["jump", "branch"])
+def test_solver_matches_30_digit_reference(p, kobj, J, control):
     params = ActuatorParams(gent_limit=J)
-    eq = solve_equilibrium(p, kobj, 0.02, params)
+    eq = solve_equilibrium(p, kobj, 0.02, params, options=SolverOptions(step_control=control))
     k, s = reference_minimum(p, kobj, 0.02, params, eq.state, digits=30)
     assert abs(eq.curvature - k) <= 1e-9 * abs(k)
     assert abs(eq.side_strain - s) <= 1e-9 * abs(s)
 
 
-def test_near_the_fold_on_both_branches():
-    """Loading and unloading a k~ = 1e-4 object near its folds, checked point by point at 30 digits."""
+@pytest.mark.parametrize("control", ["jump", "branch"])
+def test_near_the_fold_on_both_branches(control):
+    """Loading and unloading a k~ = 1e-4 object near its folds, checked point by point at 30 digits (each step
+    control: the snap and the unloading branch are the same)."""
     params = ActuatorParams()
     up = [0.6, 0.65, 0.68]
     down = [0.68, 0.65, 0.62]
-    eq = None
+    eq = today = None
+    options = SolverOptions(step_control=control)
     for p in up + [0.75] + down:
-        eq = solve_equilibrium(p, 1e-4, 0.02, params, initial=eq)
+        eq = solve_equilibrium(p, 1e-4, 0.02, params, initial=eq, options=options)
+        today = solve_equilibrium(p, 1e-4, 0.02, params, initial=today)
+        assert eq.snapped == today.snapped
         k, s = reference_minimum(p, 1e-4, 0.02, params, eq.state, digits=30)
         assert abs(eq.curvature - k) <= 1e-9 * abs(k)
         assert abs(eq.side_strain - s) <= 1e-9 * abs(s)

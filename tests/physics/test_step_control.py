@@ -1,0 +1,103 @@
+"""``SolverOptions.step_control="branch"``: longer continuation sub-steps where both ends lie on one branch. The same
+minima, the same folds (``snapped``) and the same branches as today's control (``"jump"``), with fewer evaluations;
+the compiled solver's only (the masked solver of the numpy and torch backends refuses it)."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import numpy as np
+import pytest
+
+import pneunet_env  # noqa: F401
+from pneunet_env import ActuatorParams, load_path
+from pneunet_env.fused import HAVE_FUSED
+from pneunet_env.physics import xp
+from pneunet_env.physics.masked import solve_masked
+from pneunet_env.physics.solver import STEP_CONTROLS, SolverOptions, params_tuple, step_state
+
+from .test_solver import KO, assert_minimum
+
+
+def _walks(control: str, gent: float, n: int = 240, steps: int = 30, seed: int = 3):
+    """Random pressure walks from rest (steps up to p~ 0.2 either way, objects from free to k~ = 10): each step's
+    state, snapped flag, status and evaluations."""
+    rng = np.random.default_rng(seed)
+    prm = params_tuple(ActuatorParams(gent_limit=gent))
+    opts = SolverOptions(step_control=control).as_tuple()
+    kobj = np.where(rng.random(n) < 0.1, 0.0, 10 ** rng.uniform(-3, 1, n))
+    ko = rng.uniform(0.01, 0.3, n)
+    dp = rng.uniform(-0.2, 0.2, (n, steps))
+    out = np.zeros((4, n, steps))
+    for w in range(n):
+        k = s = p = 0.0
+        for i in range(steps):
+            p1 = min(max(p + dp[w, i], 0.0), 1.2)
+            r = step_state(k, s, p, p1, prm, kobj[w], ko[w], opts)
+            if r.status <= 1:
+                k, s, p = r.kappa, r.side_strain, p1
+            out[:, w, i] = k, s, r.snapped, r.status if r.status > 1 else -r.evaluations
+    return out
+
+
+@pytest.mark.parametrize("gent", [50.0, 20.0])
+def test_branch_control_flags_the_same_folds_on_the_same_branches_with_fewer_evaluations(gent):
+    jump, branch = _walks("jump", gent), _walks("branch", gent)
+    ok = ~((jump[3] > 1).any(axis=1) | (branch[3] > 1).any(axis=1))  # walks where neither failed a solve
+    assert ok.mean() > 0.9
+    assert jump[2][ok].sum() > (20 if gent == 50.0 else 0)  # folds crossed
+    assert np.array_equal(jump[2][ok], branch[2][ok])  # the same snaps, step for step
+    assert np.abs(jump[:2, ok] - branch[:2, ok]).max() <= 1e-9  # the same minima: no walk left its branch
+    evaluations = [-w[3][ok].sum() for w in (jump, branch)]
+    assert evaluations[1] < evaluations[0]
+
+
+def test_every_state_on_hard_paths_is_a_minimum_under_branch_control():
+    options = SolverOptions(step_control="branch")
+    cases = [
+        (ActuatorParams(), 1e-4, np.linspace(0, 1.2, 25)),  # fold
+        (ActuatorParams(), 1e-1, np.linspace(0, 2.0, 11)),  # very stiff
+        (ActuatorParams(gent_limit=2.0), 0.0, [0.5, 2.0, 5.0, 20.0]),  # up against the Gent limit
+        (ActuatorParams(gent_limit=15.0), 1e-5, [1.2, 0.0, 1.2]),  # big steps both ways
+    ]
+    for params, kobj, ps in cases:
+        path = load_path(ps, kobj, KO, params, options=options)
+        reference = load_path(ps, kobj, KO, params)
+        assert np.array_equal(path.snapped, reference.snapped)
+        assert np.abs(path.curvature - reference.curvature).max() <= 1e-9
+        for eq in path.equilibria:
+            assert_minimum(eq, params)
+
+
+def test_step_control_is_checked_and_refused_where_it_is_not_built():
+    assert SolverOptions().as_tuple()[-1] == 0 and SolverOptions(step_control="branch").as_tuple()[-1] == 1
+    assert STEP_CONTROLS == ("jump", "branch")
+    for bad in ("Branch", "", None, 1):
+        with pytest.raises(ValueError, match="step_control"):
+            SolverOptions(step_control=bad)
+    with pytest.raises(ValueError, match="step_control 'branch'.*backend='numpy'"):
+        gym.make_vec("PneuNetGrasp-v0", num_envs=2, backend="numpy", step_control="branch")
+    z = np.zeros(2)
+    with pytest.raises(ValueError, match="step_control 'branch'"):
+        solve_masked(z, z, z, z + 0.1, z, z + 0.2, None, SolverOptions(step_control="branch").as_tuple(),
+                     np.ones(2, bool), xp.NUMPY)
+
+
+@pytest.mark.skipif(not HAVE_FUSED, reason="the compiled steps need numba")
+def test_the_envs_step_under_branch_control():
+    """The single env and the vector env (the compiled steps) take the option: an episode of the best-ramp-like
+    ramp into stiff objects, every solve converged, and the single env's states those of the vector env's."""
+    n = 8
+    kw = {"step_control": "branch", "terminate_on_damage": False, "terminate_on_slip": False}
+    vec = gym.make_vec("PneuNetGrasp-v0", num_envs=n, **kw)
+    vec.reset(seed=1)
+    singles = [gym.make("PneuNetGrasp-v0", **kw) for _ in range(n)]
+    for i, e in enumerate(singles):
+        e.reset(seed=1 + i)
+    a = np.full((n, 1), 0.6, np.float32)
+    for _ in range(25):
+        _, _, _, _, info = vec.step(a)
+        assert info["solver_converged"].all()
+        for i, e in enumerate(singles):
+            _, _, _, _, si = e.step(a[i])
+            assert si["pressure_kpa"] == info["pressure_kpa"][i]
+            assert si["curvature_per_m"] == pytest.approx(info["curvature_per_m"][i], abs=1e-9)
