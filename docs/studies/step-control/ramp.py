@@ -1,7 +1,8 @@
 """``python ramp.py LABEL``: the vector env at N = 16,384 under the best blind ramp: energy evaluations per env-step
 (an untimed full-info pass of 200 steps) and env-steps per second (best of 3 × 100 steps) against
-CartPoleVectorEnv in the same process."""
+CartPoleVectorEnv in the same process. ``STEP_CONTROL`` (environment): the solver's ``step_control``."""
 
+import os
 import sys
 import time
 
@@ -12,8 +13,9 @@ import pneunet_env  # noqa: F401
 from pneunet_env.bench.speed import ramp_policy
 
 N = 16384
+CONTROL = {"step_control": os.environ.get("STEP_CONTROL", "jump")}
 pol = ramp_policy()
-env = gym.make_vec("PneuNetGrasp-v0", num_envs=N, info_level="full")
+env = gym.make_vec("PneuNetGrasp-v0", num_envs=N, info_level="full", **CONTROL)
 obs, _ = env.reset(seed=5)
 ev = n = 0
 for _ in range(200):
@@ -22,7 +24,7 @@ for _ in range(200):
     if "final_info" in info:
         e = np.where(info["final_info"]["_pressure"], info["final_info"]["solver_evaluations"], e)
     ev, n = ev + e.sum(), n + e.size
-env = gym.make_vec("PneuNetGrasp-v0", num_envs=N)
+env = gym.make_vec("PneuNetGrasp-v0", num_envs=N, **CONTROL)
 obs, _ = env.reset(seed=5)
 for _ in range(30):
     obs, *_ = env.step(pol(obs))
