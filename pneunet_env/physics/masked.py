@@ -342,8 +342,8 @@ def solve_masked(k, s, p0, p1, kobj, ko, prm, opts, active, ops: Ops, *, compact
     step = _round if round_fn is None else round_fn
     gtol, max_iter, corr_iter, max_step, min_step, max_jump, eig_floor, max_substeps, control = opts
     if control != 0:
-        raise ValueError(f"solver step_control {STEP_CONTROLS[control]!r} is the compiled solver's only (the numba "
-                         f"backend); the numpy and torch backends follow step_control {STEP_CONTROLS[0]!r}")
+        raise ValueError(f"solver step_control {STEP_CONTROLS[control]!r} is the scalar solver's only (the numba "
+                         f"backend); the masked solver (numpy, torch) follows step_control {STEP_CONTROLS[0]!r}")
     m: dict[str, Any] = {name: ops.full(n, 0.0, "float") for name in _FLOAT}
     m.update({name: ops.full(n, 0, "int") for name in _INT})
     m.update({name: ops.full(n, False, "bool") for name in _BOOL})

@@ -93,7 +93,7 @@ LAST_STEP_SLACK = 1e-12
 """A sub-step within this relative slack of the remaining pressure lands exactly on the target."""
 BRANCH_PREDICTED_CHANGE = 0.1
 """``step_control="branch"``: a sub-step is sized so that the tangent predicts a state change of at most this (the
-state is of order 0.01-1), instead of ``PREDICTED_JUMP_FRACTION * max_jump``."""
+state is of order 0.01-1), or ``PREDICTED_JUMP_FRACTION * max_jump`` where that is more."""
 BRANCH_MIDPOINT_FRACTION = 0.25
 """``step_control="branch"``: the Newton correction at the middle of a long sub-step's Hermite interpolant must be at
 most this fraction of ``max_jump`` (one branch: between two branches the interpolant's middle is far from both)."""
@@ -160,7 +160,9 @@ class SolverOptions:
             sub-step is shrunk.
         max_step: Largest pressure sub-step ``dp~``.
         min_step: Smallest pressure sub-step; a branch that cannot be followed over it has ended (fold).
-        max_jump: Largest state change ``max(|d kappa~|, |d e_s|)`` over one sub-step on the same branch.
+        max_jump: Largest state change ``max(|d kappa~|, |d e_s|)`` over one sub-step on the same branch (under
+            ``step_control="branch"``: from the sub-step's predictor, its ends checked to lie on one branch); a fold
+            whose jump is larger sets ``snapped``.
         eig_floor: Relative floor on the modified Hessian's eigenvalues.
         max_substeps: Sub-step attempts (accepted, shrunk or a fold) allowed in one call; when they are spent the
             call stops with status :data:`STATUS_BUDGET` (not converged). The env's steps take at most about 50.
@@ -178,7 +180,8 @@ class SolverOptions:
             two ends lie on one branch (the Newton correction at the middle of their cubic Hermite interpolant is
             at most :data:`BRANCH_MIDPOINT_FRACTION` ``max_jump``); folds are found and ``snapped`` set as before.
             About half the evaluations where the path is steep (contact: ``docs/studies/step-control``). The
-            compiled solver only (numba): the numpy and torch backends' masked solver refuses it.
+            scalar solver's (compiled with numba, or plain Python): the masked solver of the numpy and torch
+            backends refuses it.
     """
 
     gtol: float = 1e-11
@@ -356,6 +359,14 @@ def make_sym2(hypot, atan2, cos, sin, where, jit=identity):
 sym2_eigvals, sym2_eigvec = make_sym2(math.hypot, math.atan2, math.cos, math.sin, njit(scalar_where), njit)
 
 
+@njit
+def hermite_midpoint(k0, s0, tk0, ts0, k1, s1, tk1, ts1, dp):
+    """The middle of the cubic Hermite interpolant between two states ``(k0, s0)`` and ``(k1, s1)`` a pressure ``dp``
+    apart, with tangents ``dx/dp`` ``(tk0, ts0)`` and ``(tk1, ts1)``: ``(x0 + x1) / 2 + dp (t0 - t1) / 8``
+    (``step_control="branch"``'s test of one branch; the free table interpolates its nodes the same way)."""
+    return 0.5 * (k0 + k1) + dp / 8.0 * (tk0 - tk1), 0.5 * (s0 + s1) + dp / 8.0 * (ts0 - ts1)
+
+
 def _make_parts(terms, jit=njit):
     """The solver's pieces over an energy kernel ``terms`` (:func:`pneunet_env.physics.mechanics.make_terms`'s),
     compiled by ``jit``: ``(evaluate, minimise, follow_ev, follow_from, descend)``.
@@ -480,9 +491,7 @@ def _make_parts(terms, jit=njit):
             return False, 0
         t1k = (e1.h_ss * e1.v_kappa - e1.h_ks * e1.v_strain) / d1
         t1s = (e1.h_kk * e1.v_strain - e1.h_ks * e1.v_kappa) / d1
-        dp = pt - p
-        km = 0.5 * (k + r.kappa) + dp / 8.0 * (tk - t1k)
-        sm = 0.5 * (s + r.side_strain) + dp / 8.0 * (ts - t1s)
+        km, sm = hermite_midpoint(k, s, tk, ts, r.kappa, r.side_strain, t1k, t1s, pt - p)
         em = evaluate(km, sm, 0.5 * (p + pt), prm, kobj, ko)
         if not em.ok:
             return False, 1
@@ -499,7 +508,9 @@ def _make_parts(terms, jit=njit):
         # step's last one); returns follow_ev's tuple and the evaluation at the answer.
         gtol, max_iter, corr_iter, max_step, min_step, max_jump, eig_floor, max_substeps, control = opts
         # control 1 ("branch"): a predicted change up to BRANCH_PREDICTED_CHANGE, accepted when one branch (below)
-        predicted_limit = PREDICTED_JUMP_FRACTION * max_jump if control == 0 else BRANCH_PREDICTED_CHANGE
+        predicted_limit = PREDICTED_JUMP_FRACTION * max_jump
+        if control == 1:
+            predicted_limit = max(BRANCH_PREDICTED_CHANGE, predicted_limit)
         # Polish the start so that the tangent is taken at an equilibrium (at an equilibrium: one evaluation).
         k, s, U, gn, lmin, iters, status, ev, n_eval, n_back = descend(k, s, p0, prm, kobj, ko, gtol, max_iter,
                                                                        eig_floor, ev0, k, s, math.inf)

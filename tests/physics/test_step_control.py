@@ -9,11 +9,18 @@ import numpy as np
 import pytest
 
 import pneunet_env  # noqa: F401
-from pneunet_env import ActuatorParams, load_path
+from pneunet_env import ActuatorParams, load_path, solve_equilibrium
 from pneunet_env.fused import HAVE_FUSED
 from pneunet_env.physics import xp
 from pneunet_env.physics.masked import solve_masked
-from pneunet_env.physics.solver import STEP_CONTROLS, SolverOptions, params_tuple, step_state
+from pneunet_env.physics.solver import (
+    STEP_CONTROLS,
+    SolverOptions,
+    evaluate_state,
+    hermite_midpoint,
+    params_tuple,
+    step_state,
+)
 
 from .test_solver import KO, assert_minimum
 
@@ -101,3 +108,49 @@ def test_the_envs_step_under_branch_control():
             _, _, _, _, si = e.step(a[i])
             assert si["pressure_kpa"] == info["pressure_kpa"][i]
             assert si["curvature_per_m"] == pytest.approx(info["curvature_per_m"][i], abs=1e-9)
+
+
+def _tangent(eq, prm):
+    """``dx/dp = H^-1 dV/dx`` at an equilibrium (the continuation's tangent)."""
+    e = evaluate_state(eq.curvature, eq.side_strain, eq.pressure, prm, eq.object_stiffness, eq.object_curvature)
+    det = e.h_kk * e.h_ss - e.h_ks * e.h_ks
+    return (e.h_ss * e.v_kappa - e.h_ks * e.v_strain) / det, (e.h_kk * e.v_strain - e.h_ks * e.v_kappa) / det
+
+
+@pytest.mark.parametrize("p0, p1, kobj, ko", [
+    (0.3, 0.4, 0.0, 0.2),  # free, below the balloon region
+    (0.45, 0.6, 0.0, 0.2),  # free, through it
+    (0.8, 1.0, 1.0, 0.05),  # in contact the whole way
+    (0.6, 0.7, 5.0, 0.05),  # a stiff object
+])
+def test_the_hermite_midpoint_is_the_paths_middle(p0, p1, kobj, ko):
+    """On a smooth stretch of one branch the cubic Hermite midpoint of two equilibria (with their tangents) lies far
+    closer to the equilibrium halfway than their chord's middle: what lets the branch test tell one branch from two
+    (a wrong sign or a wrong tangent puts it farther than the chord)."""
+    prm = params_tuple(ActuatorParams())
+    a = solve_equilibrium(p0, kobj, ko)
+    b = solve_equilibrium(p1, kobj, ko, initial=a)
+    m = solve_equilibrium(0.5 * (p0 + p1), kobj, ko, initial=a)
+    assert a.in_contact == b.in_contact == m.in_contact
+    mid = hermite_midpoint(a.curvature, a.side_strain, *_tangent(a, prm), b.curvature, b.side_strain,
+                           *_tangent(b, prm), p1 - p0)
+    chord = 0.5 * (a.curvature + b.curvature), 0.5 * (a.side_strain + b.side_strain)
+
+    def error(x):
+        return max(abs(x[0] - m.curvature), abs(x[1] - m.side_strain))
+
+    assert error(mid) < 0.25 * error(chord)
+
+
+@pytest.mark.parametrize("gent, kobj, ko, p0, p1, k, s", [
+    # found by review: without the midpoint test, "branch" crossed these folds without flagging them
+    (20.0, 8.057607705812616e-06, 0.01508693307462388, 0.0, 0.738169340904125, 0.0, 0.0),
+    (15.0, 0.0001488449087008495, 0.03338056237411515, 0.654404448722596, 0.6024689428611705, 0.17516495866864812,
+     0.8976607460272517),
+])
+def test_a_long_step_across_a_fold_is_flagged_under_branch_control(gent, kobj, ko, p0, p1, k, s):
+    prm = params_tuple(ActuatorParams(gent_limit=gent))
+    jump, branch = (step_state(k, s, p0, p1, prm, kobj, ko, SolverOptions(step_control=c).as_tuple())
+                    for c in STEP_CONTROLS)
+    assert jump.snapped and branch.snapped and branch.status <= 1
+    assert abs(jump.kappa - branch.kappa) <= 1e-9 and abs(jump.side_strain - branch.side_strain) <= 1e-9
