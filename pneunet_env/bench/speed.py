@@ -550,22 +550,22 @@ def format_table(res: dict[str, Any]) -> str:
         lines.append(f"  {row['num_envs']:>6}  {cells[0]}  {cells[1]}  {_fmt_rate(r['CartPole-v1']):>18}  "
                      f"{ratios[0]}  {ratios[1][2:]}")
     last = res["vector_env"][-1]
-    if "ratio_continuation" in last:
-        r, q, qc = last["steps_per_s"], last["ratio"], last["ratio_continuation"]
-        lines += ["", f"the free actuator's table at N = {last['num_envs']:,}, same rounds: with it (the default) "
-                      f"and without ({CONTINUATION}: free_table=False)"]
-        for p in qc:
-            with_, without = r[f"PneuNetGrasp-v0 {p}"], r[f"PneuNetGrasp-v0 {p}, {CONTINUATION}"]
-            lines.append(f"  {p:<8}{_fmt_rate(with_):>12} ({q[p]:.3f}x)  without {_fmt_rate(without):>12} "
-                         f"({qc[p]:.3f}x)   {with_ / without:.2f}x faster")
-    if f"ratio_{BRANCH}" in last:
-        r, q, qb = last["steps_per_s"], last["ratio"], last[f"ratio_{BRANCH}"]
-        lines += ["", f"the solver's step control at N = {last['num_envs']:,}, same rounds: jump (the default) and "
-                      f"{BRANCH} (step_control='{BRANCH}': longer sub-steps on one branch)"]
-        for p in qb:
-            jump, branch = r[f"PneuNetGrasp-v0 {p}"], r[f"PneuNetGrasp-v0 {p}, {BRANCH}"]
-            lines.append(f"  {p:<8}{_fmt_rate(jump):>12} ({q[p]:.3f}x)  {BRANCH} {_fmt_rate(branch):>13} "
-                         f"({qb[p]:.3f}x)   {branch / jump:.2f}x")
+    headings = {  # each variant's lines: the heading, the variant's word, and "default / variant" or its inverse
+        CONTINUATION: (f"the free actuator's table at N = {last['num_envs']:,}, same rounds: with it (the default) and "
+                       f"without ({CONTINUATION}: free_table=False)", "without", "x faster", True),
+        BRANCH: (f"the solver's step control at N = {last['num_envs']:,}, same rounds: jump (the default) and {BRANCH} "
+                 f"(step_control='{BRANCH}': longer sub-steps on one branch)", BRANCH, "x", False),
+    }
+    for v, (heading, word, unit, inverse) in headings.items():
+        if f"ratio_{v}" not in last:
+            continue
+        r, q, qv = last["steps_per_s"], last["ratio"], last[f"ratio_{v}"]
+        lines += ["", heading]
+        for p in qv:
+            default, variant = r[f"PneuNetGrasp-v0 {p}"], r[f"PneuNetGrasp-v0 {p}, {v}"]
+            factor = default / variant if inverse else variant / default
+            lines.append(f"  {p:<8}{_fmt_rate(default):>12} ({q[p]:.3f}x)  {word:<7} {_fmt_rate(variant):>12} "
+                         f"({qv[p]:.3f}x)   {factor:.2f}{unit}")
     work = last.get("workload") or {}
     if work:
         work_c = {f"{p}, no table": w for p, w in (last.get("workload_continuation") or {}).items()}
