@@ -25,6 +25,7 @@ import os
 import sys
 
 from pneunet_env.extras import PROG, require_extra
+from pneunet_env.files import deferred_interrupt
 
 __all__ = ["COMMANDS", "DEBUG_ENV", "GROUPS", "CommandError", "main", "require_extra"]
 
@@ -192,10 +193,12 @@ def main(argv: list[str] | None = None) -> int:
         print(missing, file=sys.stderr)
         return 2
     prog = f"{PROG} {name}"
-    parser = _Parser(prog=prog, description=help_)
-    module.add_arguments(parser)
-    interrupt_seen, stop_noting = _note_interrupts()
-    try:
+    interrupt_seen, stop_noting = _NOT_NOTING
+    try:  # everything from here on: a Ctrl-C at any point is the command's interrupt (status 130), never a traceback
+        with deferred_interrupt():  # the noting set up whole (a Ctrl-C meanwhile is raised after the block)
+            interrupt_seen, stop_noting = _note_interrupts()
+        parser = _Parser(prog=prog, description=help_)
+        module.add_arguments(parser)
         args = parser.parse_args(args_in)
         _resolve_config(args, name)
         return int(module.run(args) or 0)
@@ -225,6 +228,10 @@ def main(argv: list[str] | None = None) -> int:
         stop_noting()
 
 
+_NOT_NOTING = (lambda: False), (lambda: None)
+"""What :func:`_note_interrupts` returns where it notes nothing: ``(seen, stop)``."""
+
+
 def _note_interrupts():
     """Start noting the signals that reach Python during the command (``signal.set_wakeup_fd``: the interpreter
     writes each signal's number to a pipe, whatever its handler does); returns ``(seen, stop)``: ``seen()`` tells
@@ -234,7 +241,7 @@ def _note_interrupts():
     import signal
     import threading
 
-    nothing = (lambda: False), (lambda: None)
+    nothing = _NOT_NOTING
     if threading.current_thread() is not threading.main_thread():
         return nothing
     r, w = os.pipe()

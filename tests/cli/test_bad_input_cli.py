@@ -408,6 +408,26 @@ def test_a_ctrl_c_turned_into_another_error_is_still_an_interrupt(monkeypatch, p
     assert rc == 2 and "Invalid bounding box" in err
 
 
+def test_a_ctrl_c_while_the_command_is_set_up_is_its_interrupt(monkeypatch, python_ctrl_c):
+    """A Ctrl-C that comes while the command's arguments are being declared (before its run begins) ends it as an
+    interrupt, status 130, not as a traceback out of ``main`` (CI's interrupt test met one 0.03 s into a search)."""
+    from pneunet_env.cli import solve
+
+    declare = solve.add_arguments
+
+    def add_arguments(parser):
+        declare(parser)
+        _self_interrupt()
+
+    monkeypatch.delenv(DEBUG_ENV, raising=False)
+    monkeypatch.setattr(solve, "add_arguments", add_arguments)
+    try:
+        result = _call(["solve"])
+    except KeyboardInterrupt:
+        pytest.fail("the Ctrl-C escaped main() as a KeyboardInterrupt")
+    assert result == ("exit", 130, "pneunet-grasp solve: interrupted\n")
+
+
 def test_a_command_still_holds_a_ctrl_c_in_its_deferred_blocks(monkeypatch, python_ctrl_c):
     """Inside a command, ``deferred_interrupt`` still holds a Ctrl-C until its block is done (the CLI notes interrupts
     without a handler of its own, which would have turned the holding off)."""
