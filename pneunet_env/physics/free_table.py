@@ -179,12 +179,10 @@ def _make_tabulate(stamp: int):
                     break  # not converged, a fold, or kappa~ falling: the table ends at the last plain node
                 k, s = r.kappa, r.side_strain
             e = _solver._evaluate(k, s, p, prm, 0.0, _FREE_CURVATURE)
-            det = e.h_kk * e.h_ss - e.h_ks * e.h_ks
-            if not (e.ok and e.h_kk > 0.0 and det > 0.0):
+            positive, tk, ts = _solver.hessian_solve(e, e.v_kappa, e.v_strain)  # the tangent dx/dp
+            if not (e.ok and positive):
                 break
-            nodes[j, 0], nodes[j, 1] = k, s
-            nodes[j, 2] = (e.h_ss * e.v_kappa - e.h_ks * e.v_strain) / det
-            nodes[j, 3] = (e.h_kk * e.v_strain - e.h_ks * e.v_kappa) / det
+            nodes[j, 0], nodes[j, 1], nodes[j, 2], nodes[j, 3] = k, s, tk, ts
             rows = j + 1
         end = rows
         if rows > 0:  # unloading starts from the last node kept (loading may have stopped past it)

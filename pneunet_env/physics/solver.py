@@ -360,6 +360,17 @@ sym2_eigvals, sym2_eigvec = make_sym2(math.hypot, math.atan2, math.cos, math.sin
 
 
 @njit
+def hessian_solve(e, a, b):
+    """``H^-1 (a, b)`` with ``H`` the Hessian of the :class:`Evaluation` ``e``, where ``H`` is positive definite:
+    ``(True, x0, x1)``; ``(False, 0.0, 0.0)`` elsewhere. With ``e``'s ``dV/dx`` it is the continuation's tangent
+    ``dx/dp``, with its gradient the Newton correction."""
+    det = e.h_kk * e.h_ss - e.h_ks * e.h_ks
+    if not (e.h_kk > 0.0 and det > 0.0):
+        return False, 0.0, 0.0
+    return True, (e.h_ss * a - e.h_ks * b) / det, (e.h_kk * b - e.h_ks * a) / det
+
+
+@njit
 def hermite_midpoint(k0, s0, tk0, ts0, k1, s1, tk1, ts1, dp):
     """The middle of the cubic Hermite interpolant between two states ``(k0, s0)`` and ``(k1, s1)`` a pressure ``dp``
     apart, with tangents ``dx/dp`` ``(tk0, ts0)`` and ``(tk1, ts1)``: ``(x0 + x1) / 2 + dp (t0 - t1) / 8``
@@ -486,21 +497,15 @@ def _make_parts(terms, jit=njit):
         # the Newton correction at the middle of their cubic Hermite interpolant is at most
         # BRANCH_MIDPOINT_FRACTION max_jump (both Hessians positive definite). Returns (accept, evaluations).
         e1 = r.evaluation
-        d1 = e1.h_kk * e1.h_ss - e1.h_ks * e1.h_ks
-        if not (e1.h_kk > 0.0 and d1 > 0.0):
+        pd1, t1k, t1s = hessian_solve(e1, e1.v_kappa, e1.v_strain)
+        if not pd1:
             return False, 0
-        t1k = (e1.h_ss * e1.v_kappa - e1.h_ks * e1.v_strain) / d1
-        t1s = (e1.h_kk * e1.v_strain - e1.h_ks * e1.v_kappa) / d1
         km, sm = hermite_midpoint(k, s, tk, ts, r.kappa, r.side_strain, t1k, t1s, pt - p)
         em = evaluate(km, sm, 0.5 * (p + pt), prm, kobj, ko)
         if not em.ok:
             return False, 1
-        dm = em.h_kk * em.h_ss - em.h_ks * em.h_ks
-        if not (em.h_kk > 0.0 and dm > 0.0):
-            return False, 1
-        ck = (em.h_ss * em.g_kappa - em.h_ks * em.g_strain) / dm
-        cs = (em.h_kk * em.g_strain - em.h_ks * em.g_kappa) / dm
-        return max(abs(ck), abs(cs)) <= BRANCH_MIDPOINT_FRACTION * max_jump, 1
+        pdm, ck, cs = hessian_solve(em, em.g_kappa, em.g_strain)
+        return pdm and max(abs(ck), abs(cs)) <= BRANCH_MIDPOINT_FRACTION * max_jump, 1
 
     @jit
     def follow_from(k, s, p0, p1, prm, kobj, ko, opts, ev0):
@@ -526,13 +531,8 @@ def _make_parts(terms, jit=njit):
                 break
             attempts += 1
             # Tangent dx/dp = H^{-1} dV/dx at the current equilibrium, where the Hessian is positive definite.
-            hkk, hks, hss, vk, vs = ev.h_kk, ev.h_ks, ev.h_ss, ev.v_kappa, ev.v_strain
-            det = hkk * hss - hks * hks
-            tangent = hkk > 0.0 and det > 0.0
-            tk = ts = 0.0
+            tangent, tk, ts = hessian_solve(ev, ev.v_kappa, ev.v_strain)
             if tangent:
-                tk = (hss * vk - hks * vs) / det
-                ts = (hkk * vs - hks * vk) / det
                 rate = max(abs(tk), abs(ts))
                 # Size the sub-step so that the predicted change stays well inside max_jump (or the long limit).
                 if h * rate > predicted_limit:
