@@ -151,28 +151,39 @@ def _vector(out, scenario: str, steps: int, seed: int, n: int = 4, mask_at: int 
     rec.close()
 
 
-CONTINUATION = {"free_table": False}
+JUMP = {"step_control": "jump"}
+"""The solver's step control before 0.12 (``"branch"`` since): the scenarios recorded before it keep it."""
+CONTINUATION = {"free_table": False, **JUMP}
 """The compiled steps without the free actuator's table: every solve the continuation's (the scenarios recorded
-before the table; the ``*_free_table`` ones run with it, the default)."""
+before the table; the ``*_free_table`` ones run with it)."""
 
 SCENARIOS: dict[str, Callable[[dict[str, Any]], None]] = {
     "single": lambda out: _single(out, "single", "PneuNetGrasp-v0", 40, 7, **CONTINUATION),
     "single_paper_volume": lambda out: _single(out, "single_paper_volume", "PneuNetGrasp-Paper-v0", 30, 11,
                                                observe_volume=True, **CONTINUATION),
     "single_budget": lambda out: _single(out, "single_budget", "PneuNetGrasp-v0", 24, 17, **BUDGET, **CONTINUATION),
-    "single_free_table": lambda out: _single(out, "single_free_table", "PneuNetGrasp-v0", 40, 7),
+    "single_free_table": lambda out: _single(out, "single_free_table", "PneuNetGrasp-v0", 40, 7, **JUMP),
     "rigid": lambda out: _single(out, "rigid", "RigidGrasp-v0", 30, 5),
     "vector_numba": lambda out: _vector(out, "vector_numba", 24, 3, backend="numba", mask_at=9, **CONTINUATION),
     "vector_numba_free_table": lambda out: _vector(out, "vector_numba_free_table", 24, 3, backend="numba",
-                                                   mask_at=9),
+                                                   mask_at=9, **JUMP),
     "vector_numba_budget": lambda out: _vector(out, "vector_numba_budget", 16, 23, backend="numba", **BUDGET,
                                                **CONTINUATION),
     "vector_numba_array": lambda out: _vector(out, "vector_numba_array", 16, 23, backend="numba", fused=False,
-                                              **BUDGET),
+                                              **BUDGET, **JUMP),
     "vector_numba_next": lambda out: _vector(out, "vector_numba_next", 20, 13, backend="numba",
                                              autoreset_mode="NextStep", observe_volume=True, **CONTINUATION),
-    "vector_numpy": lambda out: _vector(out, "vector_numpy", 14, 3, backend="numpy", mask_at=6),
-    "vector_torch": lambda out: _vector(out, "vector_torch", 10, 29, backend="torch", mask_at=4, max_substeps=14),
+    "vector_numpy": lambda out: _vector(out, "vector_numpy", 14, 3, backend="numpy", mask_at=6, **JUMP),
+    "vector_torch": lambda out: _vector(out, "vector_torch", 10, 29, backend="torch", mask_at=4, max_substeps=14,
+                                        **JUMP),
+    # the defaults since 0.12 (the free table and step_control "branch"): the same episodes as their "jump" twins
+    "single_branch": lambda out: _single(out, "single_branch", "PneuNetGrasp-v0", 40, 7),
+    "single_paper_branch": lambda out: _single(out, "single_paper_branch", "PneuNetGrasp-Paper-v0", 30, 11,
+                                               observe_volume=True),
+    "vector_numba_branch": lambda out: _vector(out, "vector_numba_branch", 24, 3, backend="numba", mask_at=9),
+    "vector_numba_array_branch": lambda out: _vector(out, "vector_numba_array_branch", 16, 23, backend="numba",
+                                                     fused=False, **BUDGET),
+    "vector_numpy_branch": lambda out: _vector(out, "vector_numpy_branch", 14, 3, backend="numpy", mask_at=6),
 }
 """The scenarios, by name: each records its entries into the dict it is given."""
 

@@ -278,10 +278,10 @@ def _workload(infos, acc: _Accuracy | None) -> dict[str, Any]:
 CONTINUATION = "continuation"
 """The variant measured beside the default at the largest N, on numba: the env without the free actuator's table
 (``free_table=False``: every step the continuation's), so that one run gives what the table buys."""
-BRANCH = "branch"
-"""The other variant measured there: the solver's ``step_control="branch"`` (longer sub-steps on one branch; the
-compiled solver's option, not the default), so that one run gives what it buys."""
-VARIANTS = {CONTINUATION: {"free_table": False}, BRANCH: {"step_control": "branch"}}
+JUMP = "jump"
+"""The other variant measured there: the solver's ``step_control="jump"`` (every sub-step within ``max_jump`` of its
+start: the default until 0.12, ``"branch"`` since), so that one run gives what the default's longer sub-steps buy."""
+VARIANTS = {CONTINUATION: {"free_table": False}, JUMP: {"step_control": "jump"}}
 """The variants at the largest N (numba), by name: their config overrides."""
 
 
@@ -292,7 +292,7 @@ def bench_vector(num_envs: tuple[int, ...], env_steps: int, min_steps: int, repe
     actions) at each N, and each workload's per-env-step solver counts (an untimed pass at the full info level).
 
     With ``compare`` (and numba), at the largest N the same workloads also run in each of :data:`VARIANTS` (without
-    the free actuator's table, :data:`CONTINUATION`; with the branch step control, :data:`BRANCH`), in the same
+    the free actuator's table, :data:`CONTINUATION`; with the step control "jump", :data:`JUMP`), in the same
     rounds: ``steps_per_s["PneuNetGrasp-v0 <workload>, <variant>"]``, ``ratio_<variant>`` and
     ``workload_<variant>``."""
     import gymnasium as gym
@@ -553,8 +553,9 @@ def format_table(res: dict[str, Any]) -> str:
     headings = {  # each variant's lines: the heading, the variant's word, and "default / variant" or its inverse
         CONTINUATION: (f"the free actuator's table at N = {last['num_envs']:,}, same rounds: with it (the default) and "
                        f"without ({CONTINUATION}: free_table=False)", "without", "x faster", True),
-        BRANCH: (f"the solver's step control at N = {last['num_envs']:,}, same rounds: jump (the default) and {BRANCH} "
-                 f"(step_control='{BRANCH}': longer sub-steps on one branch)", BRANCH, "x", False),
+        JUMP: (f"the solver's step control at N = {last['num_envs']:,}, same rounds: branch (the default: longer "
+               f"sub-steps on one branch) and {JUMP} (step_control='{JUMP}', the default until 0.12)", JUMP,
+               "x faster", True),
     }
     for v, (heading, word, unit, inverse) in headings.items():
         if f"ratio_{v}" not in last:
@@ -569,7 +570,7 @@ def format_table(res: dict[str, Any]) -> str:
     work = last.get("workload") or {}
     if work:
         work_c = {f"{p}, no table": w for p, w in (last.get("workload_continuation") or {}).items()}
-        work_b = {f"{p}, {BRANCH}": w for p, w in (last.get(f"workload_{BRANCH}") or {}).items()}
+        work_b = {f"{p}, {JUMP}": w for p, w in (last.get(f"workload_{JUMP}") or {}).items()}
         columns = {**work, **work_c, **work_b}
         keys = [k for k in ("energy_evaluations", "newton_iterations", "substeps", "backtracks", "contact_share",
                             "unchanged_pressure_share", "episode_end_share")

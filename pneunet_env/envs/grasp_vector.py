@@ -366,10 +366,6 @@ class PneuNetGraspVectorEnv(VectorEnv):
         self.object_class_names: tuple[str, ...] = task.class_names(self.config)
         """The catalogue classes, by the integer code of ``info["object_class"]`` (-1: drawn from ranges)."""
         numba_backend = backend == "numba" or (backend == "auto" and HAVE_FUSED)
-        if self.config.solver.step_control != "jump" and not numba_backend:
-            raise ValueError(f"solver step_control {self.config.solver.step_control!r} is the scalar solver's "
-                             f"only (the numba backend; the numpy and torch backends' masked solver has not got it), "
-                             f"got backend={backend!r}")
         if fused is None:
             fused = numba_backend
         if not isinstance(fused, bool) or (fused and not numba_backend):

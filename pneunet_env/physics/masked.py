@@ -34,6 +34,8 @@ from pneunet_env.physics.contact import make_contact
 from pneunet_env.physics.solver import (
     ACCEPT_GTOL,
     ARMIJO,
+    BRANCH_MIDPOINT_FRACTION,
+    BRANCH_PREDICTED_CHANGE,
     EASY_CORRECTOR_ITERATIONS,
     ENERGY_ROUNDOFF,
     ESCAPE_GRADIENT,
@@ -52,8 +54,8 @@ from pneunet_env.physics.solver import (
     STATUS_ROUNDOFF,
     STATUS_STALLED,
     STEP_AFTER_FOLD,
-    STEP_CONTROLS,
     Solve,
+    hermite_midpoint,
     make_sym2,
 )
 from pneunet_env.physics.xp import Ops, copy
@@ -64,12 +66,14 @@ __all__ = ["solve_masked", "kernels", "Kernels", "OUTPUTS"]
 _E_START = 1  # the start of a descent
 _E_PRED = 2  # the tangent predictor of a corrector (falls back on the branch point if outside the domain)
 _E_TRIAL = 3  # a line-search trial
+_E_MID = 4  # step_control "branch": the Hermite midpoint of a long sub-step (its ends on one branch?)
 # ... those that only branch (resolved within the round) ...
-_D_CHECK = 4  # top of a Newton iteration
-_D_END = 5  # a descent has finished
-_F_LOOP = 6  # top of the continuation loop
+_D_CHECK = 5  # top of a Newton iteration
+_D_END = 6  # a descent has finished
+_M_END = 7  # the midpoint's test is done (its answer in "mid_ok")
+_F_LOOP = 8  # top of the continuation loop
 # ... and the end.
-_DONE = 7
+_DONE = 9
 
 # Which descent an env is in.
 _POLISH, _CORRECTOR, _FOLD = 0, 1, 2
@@ -77,9 +81,9 @@ _POLISH, _CORRECTOR, _FOLD = 0, 1, 2
 _FLOAT = ("k", "s", "U", "g0", "g1", "gn", "lmin", "lmax", "hkk", "hks", "hss", "vk", "vs", "dv",
           "d0", "d1", "slope", "t", "kn", "sn", "k0", "s0", "radius",
           "bk", "bs", "bU", "bgn", "blmin", "bhkk", "bhks", "bhss", "bvk", "bvs", "bdv",
-          "p", "pt", "h", "sign", "xk", "xs", "xp")
+          "p", "pt", "h", "sign", "xk", "xs", "xp", "tk", "ts")
 _INT = ("pos", "mode", "it", "maxit", "dstatus", "bstatus", "iters", "substeps", "attempts", "evals", "backs")
-_BOOL = ("ok", "bok", "snapped")
+_BOOL = ("ok", "bok", "snapped", "pred", "mid_ok")
 
 OUTPUTS = Solve._fields
 """The per-env outputs of :func:`solve_masked`, in order (:class:`pneunet_env.physics.solver.Solve`'s fields)."""
@@ -106,6 +110,18 @@ def kernels(ops: Ops) -> Kernels:
         _, contact = make_contact(ops.maximum, ops.where)
         _KERNELS[key] = Kernels(terms, eigvals, eigvec, contact)
     return _KERNELS[key]
+
+
+_hermite_midpoint = getattr(hermite_midpoint, "py_func", hermite_midpoint)  # the scalar formula, on arrays
+
+
+def _hessian_solve(hkk, hks, hss, a, b, W):
+    """:func:`pneunet_env.physics.solver.hessian_solve` on arrays: ``(pd, x0, x1)``, ``x = H^-1 (a, b)`` where ``H`` is
+    positive definite (``pd``), 0 elsewhere."""
+    det = hkk * hss - hks * hks
+    pd = (hkk > 0.0) & (det > 0.0)
+    det = W(pd, det, 1.0)  # no 0 / 0 where it is not used
+    return pd, W(pd, (hss * a - hks * b) / det, 0.0), W(pd, (hkk * b - hks * a) / det, 0.0)
 
 
 def _set_iterate(m, sel, kk, ss, ev, eigvals, ops: Ops) -> None:
@@ -137,13 +153,21 @@ def _accept(m, sel, W) -> None:
         m[b] = W(sel, m[a], m[b])
 
 
-def _after_evaluation(m, ev, ops: Ops, eigvals) -> None:
+def _after_evaluation(m, ev, ops: Ops, eigvals, max_jump) -> None:
     W, A = ops.where, ops.abs
     pos = m["pos"]
     ok = ev.ok
-    # A predictor outside the domain: the corrector starts from the branch point instead (another evaluation).
+    # A predictor outside the domain: the corrector starts from the branch point instead (another evaluation),
+    # and keeps within max_jump of it.
     pred_out = (pos == _E_PRED) & ~ok
     m["xk"], m["xs"] = W(pred_out, m["bk"], m["xk"]), W(pred_out, m["bs"], m["xs"])
+    m["k0"], m["s0"] = W(pred_out, m["bk"], m["k0"]), W(pred_out, m["bs"], m["s0"])
+    m["pred"] = W(pos == _E_PRED, ok, m["pred"])  # the corrector started from its predictor
+    # The Hermite midpoint of a long sub-step ("branch"): its ends lie on one branch when the Newton correction there
+    # is small (solver._one_branch).
+    mid = pos == _E_MID
+    pdm, ck, cs = _hessian_solve(ev.h_kk, ev.h_ks, ev.h_ss, ev.g_kappa, ev.g_strain, W)
+    m["mid_ok"] = W(mid, ok & pdm & (ops.maximum(A(ck), A(cs)) <= BRANCH_MIDPOINT_FRACTION * max_jump), m["mid_ok"])
     # The start of a descent (a predictor inside the domain is one).
     start = ((pos == _E_START) | (pos == _E_PRED)) & ~pred_out
     # A line-search trial: decided on the iterate before it changes.
@@ -179,7 +203,7 @@ def _after_evaluation(m, ev, ops: Ops, eigvals) -> None:
     far = ops.maximum(A(m["k"] - m["k0"]), A(m["s"] - m["s0"])) > m["radius"]
     guarded = (m["radius"] < math.inf) & ((m["lmin"] <= 0.0) | far)
     m["dstatus"] = status
-    pos = W(pred_out, _E_START, pos)
+    pos = W(pred_out, _E_START, W(mid, _M_END, pos))
     pos = W(start & ~bad, _D_CHECK, W(bad, _D_END, pos))
     pos = W(give_up, _D_END, pos)
     pos = W(acc, W(stalled | guarded, _D_END, _D_CHECK), pos)
@@ -222,22 +246,39 @@ def _descend_check(m, gtol, eig_floor, ops: Ops, eigvec) -> None:
     m["pos"] = W(go, _E_TRIAL, W(conv | limit, _D_END, m["pos"]))
 
 
-def _descend_end(m, max_iter, min_step, max_step, max_jump, ops: Ops) -> None:
+def _descend_end(m, max_iter, min_step, max_step, max_jump, control, ops: Ops) -> None:
     W, A, mx = ops.where, ops.abs, ops.maximum
-    sel = m["pos"] == _D_END
+    ended = m["pos"] == _D_END
+    tested = m["pos"] == _M_END  # a corrector whose long sub-step's midpoint was tested
+    sel = ended | tested
     # descend's epilogue.
-    floor = sel & (m["dstatus"] != STATUS_CONVERGED) & (m["gn"] <= ACCEPT_GTOL) & (m["lmin"] > 0.0)
+    floor = ended & (m["dstatus"] != STATUS_CONVERGED) & (m["gn"] <= ACCEPT_GTOL) & (m["lmin"] > 0.0)
     m["dstatus"] = W(floor, STATUS_ROUNDOFF, m["dstatus"])
-    m["iters"] = W(sel, m["iters"] + m["it"], m["iters"])
+    m["iters"] = W(ended, m["iters"] + m["it"], m["iters"])
     mode = m["mode"]
-    jump = mx(A(m["k"] - m["bk"]), A(m["s"] - m["bs"]))  # from the branch state before it changes
+    k, s, bk, bs = m["k"], m["s"], m["bk"], m["bs"]
+    jump = mx(A(k - bk), A(s - bs))  # from the branch state before it changes
 
     # The polish at p0: its result is the branch state.
     pol = sel & (mode == _POLISH)
     # A corrector: accept the sub-step on the same branch, else shrink it, else a fold.
     cor = sel & (mode == _CORRECTOR)
-    acc = cor & (m["dstatus"] <= STATUS_ROUNDOFF) & (jump <= max_jump)
-    rej = cor & ~acc
+    converged = m["dstatus"] <= STATUS_ROUNDOFF
+    acc = cor & ((ended & converged & (jump <= max_jump)) | (tested & m["mid_ok"]))
+    if control == 1:
+        # "branch": a corrector that converged within max_jump of its predictor (k0, s0) but moved farther from the
+        # branch state: accepted if the midpoint of the two ends' Hermite interpolant lies on their branch (an
+        # evaluation, where the end's Hessian is positive definite; else a rejection).
+        pd1, t1k, t1s = _hessian_solve(m["hkk"], m["hks"], m["hss"], m["vk"], m["vs"], W)
+        long = cor & ended & ~acc & m["pred"] & converged & (mx(A(k - m["k0"]), A(s - m["s0"])) <= max_jump)
+        test = long & pd1
+        km, sm = _hermite_midpoint(bk, bs, m["tk"], m["ts"], k, s, t1k, t1s, m["pt"] - m["p"])
+        m["xk"], m["xs"] = W(test, km, m["xk"]), W(test, sm, m["xs"])
+        m["xp"] = W(test, 0.5 * (m["p"] + m["pt"]), m["xp"])
+        rej = cor & ~acc & ~test
+    else:
+        test = None
+        rej = cor & ~acc
     shrink = rej & (m["h"] > min_step)
     fold_start = rej & ~shrink  # the branch ends: descend fully from the branch point at pt
     # After a fold.
@@ -258,10 +299,11 @@ def _descend_end(m, max_iter, min_step, max_step, max_jump, ops: Ops) -> None:
     m["radius"] = W(fold_start, math.inf, m["radius"])
     m["maxit"] = W(fold_start, max_iter, m["maxit"])
     m["mode"] = W(fold_start, _FOLD, mode)
-    m["pos"] = W(fold_start, _E_START, W(pol | acc | shrink | fold, _F_LOOP, m["pos"]))
+    pos = W(fold_start, _E_START, W(pol | acc | shrink | fold, _F_LOOP, m["pos"]))
+    m["pos"] = pos if test is None else W(test, _E_MID, pos)
 
 
-def _follow_loop(m, corr_iter, min_step, max_jump, max_substeps, ops: Ops) -> None:
+def _follow_loop(m, corr_iter, min_step, max_jump, max_substeps, control, ops: Ops) -> None:
     W, A, mx = ops.where, ops.abs, ops.maximum
     sel = m["pos"] == _F_LOOP
     done = sel & ((m["p"] == m["p1"]) | (m["bstatus"] > STATUS_ROUNDOFF))
@@ -270,23 +312,26 @@ def _follow_loop(m, corr_iter, min_step, max_jump, max_substeps, ops: Ops) -> No
     go = live & ~spent
     m["bstatus"] = W(spent, STATUS_BUDGET, m["bstatus"])
     m["attempts"] = W(go, m["attempts"] + 1, m["attempts"])
-    hkk, hks, hss, vk, vs = m["bhkk"], m["bhks"], m["bhss"], m["bvk"], m["bvs"]
-    det = hkk * hss - hks * hks
-    tangent = (hkk > 0.0) & (det > 0.0)
-    tk = W(tangent, (hss * vk - hks * vs) / det, 0.0)
-    ts = W(tangent, (hkk * vs - hks * vk) / det, 0.0)
+    # The tangent dx/dp at the branch state, where its Hessian is positive definite.
+    tangent, tk, ts = _hessian_solve(m["bhkk"], m["bhks"], m["bhss"], m["bvk"], m["bvs"], W)
     rate = mx(A(tk), A(ts))
     h = m["h"]
-    limit = tangent & (h * rate > PREDICTED_JUMP_FRACTION * max_jump)
-    h = W(limit, mx(PREDICTED_JUMP_FRACTION * max_jump / W(limit, rate, 1.0), min_step), h)
+    predicted_limit = PREDICTED_JUMP_FRACTION * max_jump
+    if control == 1:  # "branch": a longer predicted change, accepted where its ends lie on one branch
+        predicted_limit = max(BRANCH_PREDICTED_CHANGE, predicted_limit)
+    limit = tangent & (h * rate > predicted_limit)
+    h = W(limit, mx(predicted_limit / W(limit, rate, 1.0), min_step), h)
     p, p1, bk, bs = m["p"], m["p1"], m["bk"], m["bs"]
     pt = W(h >= A(p1 - p) * (1.0 - LAST_STEP_SLACK), p1, p + m["sign"] * h)
     m["h"] = W(go, h, m["h"])
     m["pt"] = W(go, pt, m["pt"])
-    m["xk"] = W(go, W(tangent, bk + (pt - p) * tk, bk), m["xk"])
-    m["xs"] = W(go, W(tangent, bs + (pt - p) * ts, bs), m["xs"])
-    m["xp"] = W(go, pt, m["xp"])
-    m["k0"], m["s0"] = W(go, bk, m["k0"]), W(go, bs, m["s0"])
+    kc, sc = W(tangent, bk + (pt - p) * tk, bk), W(tangent, bs + (pt - p) * ts, bs)
+    m["xk"], m["xs"], m["xp"] = W(go, kc, m["xk"]), W(go, sc, m["xs"]), W(go, pt, m["xp"])
+    m["tk"], m["ts"] = W(go, tk, m["tk"]), W(go, ts, m["ts"])
+    m["pred"] = W(go, False, m["pred"])
+    # The corrector keeps within max_jump of the branch state ("jump") or of its predictor ("branch").
+    k0, s0 = (bk, bs) if control == 0 else (kc, sc)
+    m["k0"], m["s0"] = W(go, k0, m["k0"]), W(go, s0, m["s0"])
     m["radius"] = W(go, max_jump, m["radius"])
     m["maxit"] = W(go, corr_iter, m["maxit"])
     m["mode"] = W(go, _CORRECTOR, m["mode"])
@@ -296,15 +341,15 @@ def _follow_loop(m, corr_iter, min_step, max_jump, max_substeps, ops: Ops) -> No
 def _round(m, prm, opts, ops: Ops, kern) -> None:
     """One round: evaluate every env's pending point, then advance every env's control flow (in place in ``m``)."""
     terms, eigvals, eigvec = kern.terms, kern.eigvals, kern.eigvec
-    gtol, max_iter, corr_iter, max_step, min_step, max_jump, eig_floor, max_substeps, _ = opts
+    gtol, max_iter, corr_iter, max_step, min_step, max_jump, eig_floor, max_substeps, control = opts
     ev = terms(m["xk"], m["xs"], m["xp"], *prm, m["kobj"], m["ko"])
-    m["evals"] = ops.where(m["pos"] <= _E_TRIAL, m["evals"] + 1, m["evals"])  # the envs waiting for it (not _DONE)
-    _after_evaluation(m, ev, ops, eigvals)
+    m["evals"] = ops.where(m["pos"] <= _E_MID, m["evals"] + 1, m["evals"])  # the envs waiting for it (not _DONE)
+    _after_evaluation(m, ev, ops, eigvals, max_jump)
     # Every env that waited for this evaluation is now at a branch position, and one pass resolves them all:
-    # D_CHECK -> E_TRIAL or D_END; D_END -> F_LOOP or E_START; F_LOOP -> E_PRED, E_START or DONE.
+    # D_CHECK -> E_TRIAL or D_END; D_END, M_END -> F_LOOP, E_START or E_MID; F_LOOP -> E_PRED, E_START or DONE.
     _descend_check(m, gtol, eig_floor, ops, eigvec)
-    _descend_end(m, max_iter, min_step, max_step, max_jump, ops)
-    _follow_loop(m, corr_iter, min_step, max_jump, max_substeps, ops)
+    _descend_end(m, max_iter, min_step, max_step, max_jump, control, ops)
+    _follow_loop(m, corr_iter, min_step, max_jump, max_substeps, control, ops)
 
 
 def _outputs(m, ops: Ops) -> dict[str, Any]:
@@ -340,10 +385,7 @@ def solve_masked(k, s, p0, p1, kobj, ko, prm, opts, active, ops: Ops, *, compact
     n = k.shape[0]
     kern = kernels(ops)
     step = _round if round_fn is None else round_fn
-    gtol, max_iter, corr_iter, max_step, min_step, max_jump, eig_floor, max_substeps, control = opts
-    if control != 0:
-        raise ValueError(f"solver step_control {STEP_CONTROLS[control]!r} is the scalar solver's only (the numba "
-                         f"backend); the masked solver (numpy, torch) follows step_control {STEP_CONTROLS[0]!r}")
+    _, max_iter, _, max_step, *_ = opts
     m: dict[str, Any] = {name: ops.full(n, 0.0, "float") for name in _FLOAT}
     m.update({name: ops.full(n, 0, "int") for name in _INT})
     m.update({name: ops.full(n, False, "bool") for name in _BOOL})

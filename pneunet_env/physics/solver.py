@@ -173,15 +173,15 @@ class SolverOptions:
             the continuation for every step, bit for bit the array step's. The continuation's own calls
             (:func:`solve_equilibrium`, :func:`step_state`, the array step) do not read it; it is not part of
             :meth:`as_tuple`.
-        step_control: How long a continuation sub-step may be. ``"jump"`` (the default): a sub-step is accepted
-            only if the state moved at most ``max_jump`` from its start, and sized so that the tangent predicts
-            ``0.75 max_jump``. ``"branch"``: also a longer one (a predicted change up to
+        step_control: How long a continuation sub-step may be. ``"jump"`` (the default until 0.12): a sub-step is
+            accepted only if the state moved at most ``max_jump`` from its start, and sized so that the tangent
+            predicts ``0.75 max_jump``. ``"branch"`` (the default): also a longer one (a predicted change up to
             :data:`BRANCH_PREDICTED_CHANGE`) whose corrector converged within ``max_jump`` of its predictor and whose
             two ends lie on one branch (the Newton correction at the middle of their cubic Hermite interpolant is
             at most :data:`BRANCH_MIDPOINT_FRACTION` ``max_jump``); folds are found and ``snapped`` set as before.
-            About half the evaluations where the path is steep (contact: ``docs/studies/step-control``). The
-            scalar solver's (compiled with numba, or plain Python): the masked solver of the numpy and torch
-            backends refuses it.
+            About half the evaluations where the path is steep (contact: ``docs/studies/step-control``); the same
+            minima to the tolerance, not bit for bit. Every backend has both (the scalar solver, compiled or plain
+            Python, and the masked solver of numpy and torch make the same decisions).
     """
 
     gtol: float = 1e-11
@@ -193,7 +193,7 @@ class SolverOptions:
     eig_floor: float = 1e-10
     max_substeps: int = 10_000
     free_table: bool = True
-    step_control: str = "jump"
+    step_control: str = "branch"
 
     def __post_init__(self) -> None:
         if not isinstance(self.step_control, str) or self.step_control not in STEP_CONTROLS:

@@ -90,15 +90,18 @@ def _host(x):
 
 
 @pytest.mark.parametrize("device", DEVICES)
-@pytest.mark.parametrize("env_id,mode", [
-    pytest.param("PneuNetGrasp-v0", "SameStep", marks=pytest.mark.slow),  # 10 s: every param runs in CI
-    pytest.param("PneuNetGrasp-v0", "NextStep", marks=pytest.mark.slow),
-    pytest.param("PneuNetGrasp-Paper-v0", "SameStep", marks=pytest.mark.slow),
+@pytest.mark.parametrize("env_id,mode,control", [
+    pytest.param("PneuNetGrasp-v0", "SameStep", "jump", marks=pytest.mark.slow),  # 10 s: every param runs in CI
+    pytest.param("PneuNetGrasp-v0", "NextStep", "jump", marks=pytest.mark.slow),
+    pytest.param("PneuNetGrasp-Paper-v0", "SameStep", "jump", marks=pytest.mark.slow),
+    pytest.param("PneuNetGrasp-v0", "SameStep", "branch", marks=pytest.mark.slow),
+    pytest.param("PneuNetGrasp-Paper-v0", "SameStep", "branch", marks=pytest.mark.slow),
 ])
-def test_torch_vector_env_agrees_with_numba_through_autoresets(env_id, mode, device):
+def test_torch_vector_env_agrees_with_numba_through_autoresets(env_id, mode, control, device):
     n, steps = 24, 60
     # the paper's ring keeps going when damaged, so that its grasps reach the fold
     kw = {"terminate_on_damage": False} if "Paper" in env_id else {}
+    kw["step_control"] = control
     # the reference without the free table (numba's compiled step only): the same continuation as torch's
     ref = gym.make_vec(env_id, num_envs=n, backend=REFERENCE, info_level="full", autoreset_mode=mode, free_table=False,
                        **kw)

@@ -73,31 +73,36 @@ def random_steps():
     return k, s, p0, p1, kobj, ko
 
 
+CONTROLS = [DEFAULT_OPTIONS, SolverOptions(step_control="branch")]
+
+
+@pytest.mark.parametrize("options", CONTROLS, ids=lambda o: o.step_control)
 @pytest.mark.parametrize("backend", BACKENDS)
-def test_random_steps_match_scalar(random_steps, backend):
+def test_random_steps_match_scalar(random_steps, backend, options):
     k, s, p0, p1, kobj, ko = random_steps
-    ref = scalar_reference(k, s, p0, p1, kobj, ko)
-    r = B.solve_batch(k, s, p0, p1, kobj, ko, backend=backend)
+    ref = scalar_reference(k, s, p0, p1, kobj, ko, options=options)
+    r = B.solve_batch(k, s, p0, p1, kobj, ko, options=options, backend=backend)
     assert_matches(r, ref)
     assert r.converged.all()
     assert np.all(r.gradient_norm <= ACCEPT_GTOL) and np.all(r.min_eigenvalue > 0.0)
 
 
+@pytest.mark.parametrize("options", CONTROLS, ids=lambda o: o.step_control)
 @pytest.mark.parametrize("backend", BACKENDS)
-def test_folds_snap_like_scalar(backend):
+def test_folds_snap_like_scalar(backend, options):
     """k~ = 1e-4 folds near p~ = 0.68 on loading and snaps back near 0.6-0.7 on unloading (hysteresis)."""
     kobj = np.array([1e-4, 1e-4, 3e-5, 1e-4, 1e-4, 2e-4])
     before = np.array([0.60, 0.66, 0.55, 0.60, 0.20, 0.60])
     after = np.array([0.80, 0.70, 0.75, 0.62, 1.20, 0.90])
     k, s = equilibria(before, kobj)
-    ref = scalar_reference(k, s, before, after, kobj, KO)
-    r = B.solve_batch(k, s, before, after, kobj, KO, backend=backend)
+    ref = scalar_reference(k, s, before, after, kobj, KO, options=options)
+    r = B.solve_batch(k, s, before, after, kobj, KO, options=options, backend=backend)
     assert_matches(r, ref)
     assert r.snapped[[0, 1, 4]].all() and not r.snapped[3]
     # Unload the snapped states: they snap back.
     down = np.full(6, 0.3)
-    ref2 = scalar_reference(r.curvature, r.side_strain, after, down, kobj, KO)
-    r2 = B.solve_batch(r.curvature, r.side_strain, after, down, kobj, KO, backend=backend)
+    ref2 = scalar_reference(r.curvature, r.side_strain, after, down, kobj, KO, options=options)
+    r2 = B.solve_batch(r.curvature, r.side_strain, after, down, kobj, KO, options=options, backend=backend)
     assert_matches(r2, ref2)
     assert r2.snapped[[0, 1, 4]].all()
     # And the batched answer is the public API's.

@@ -1,6 +1,6 @@
 """``SolverOptions.step_control="branch"``: longer continuation sub-steps where both ends lie on one branch. The same
-minima, the same folds (``snapped``) and the same branches as today's control (``"jump"``), with fewer evaluations;
-the compiled solver's only (the masked solver of the numpy and torch backends refuses it)."""
+minima, the same folds (``snapped``) and the same branches as the original control (``"jump"``), with fewer
+evaluations; the scalar solver and the masked solver (numpy, torch) make the same decisions under it."""
 
 from __future__ import annotations
 
@@ -75,18 +75,58 @@ def test_every_state_on_hard_paths_is_a_minimum_under_branch_control():
             assert_minimum(eq, params)
 
 
-def test_step_control_is_checked_and_refused_where_it_is_not_built():
-    assert SolverOptions().as_tuple()[-1] == 0 and SolverOptions(step_control="branch").as_tuple()[-1] == 1
+def test_step_control_is_checked():
+    assert SolverOptions(step_control="jump").as_tuple()[-1] == 0
+    assert SolverOptions(step_control="branch").as_tuple()[-1] == 1
     assert STEP_CONTROLS == ("jump", "branch")
     for bad in ("Branch", "", None, 1):
         with pytest.raises(ValueError, match="step_control"):
             SolverOptions(step_control=bad)
-    with pytest.raises(ValueError, match="step_control 'branch'.*backend='numpy'"):
-        gym.make_vec("PneuNetGrasp-v0", num_envs=2, backend="numpy", step_control="branch")
-    z = np.zeros(2)
-    with pytest.raises(ValueError, match="step_control 'branch'"):
-        solve_masked(z, z, z, z + 0.1, z, z + 0.2, None, SolverOptions(step_control="branch").as_tuple(),
-                     np.ones(2, bool), xp.NUMPY)
+    with pytest.raises(ValueError, match="step_control"):
+        gym.make_vec("PneuNetGrasp-v0", num_envs=2, backend="numpy", step_control="Branch")
+
+
+@pytest.mark.parametrize("gent", [50.0, 20.0])
+def test_the_masked_solver_makes_the_scalar_solvers_decisions_under_branch_control(gent):
+    """Random walks batched through the masked solver (numpy; torch runs the same code): every step's status, snap,
+    evaluation count and state that of the scalar continuation. Long sub-steps, their midpoint tests (accepted and
+    rejected), predictors outside the domain and folds all occur."""
+    rng = np.random.default_rng(5)
+    n, steps = 120, 12
+    params = ActuatorParams(gent_limit=gent)
+    prm, opts = params_tuple(params), SolverOptions(step_control="branch").as_tuple()
+    kobj = np.where(rng.random(n) < 0.1, 0.0, 10 ** rng.uniform(-3, 1, n))
+    ko = rng.uniform(0.01, 0.3, n)
+    k, s, p = np.zeros(n), np.zeros(n), np.zeros(n)
+    snaps = 0
+    for _ in range(steps):
+        p1 = np.clip(p + rng.uniform(-0.2, 0.2, n), 0.0, 1.2)
+        ref = [step_state(k[i], s[i], p[i], p1[i], prm, kobj[i], ko[i], opts) for i in range(n)]
+        out = solve_masked(k, s, p, p1, kobj, ko, prm, opts, np.ones(n, bool), xp.NUMPY)
+        for name in ("status", "snapped", "evaluations", "substeps", "iterations"):
+            assert np.array_equal(out[name], [getattr(r, name) for r in ref]), name
+        for name in ("kappa", "side_strain"):
+            assert np.abs(out[name] - [getattr(r, name) for r in ref]).max() <= 1e-12, name
+        snaps += int(out["snapped"].sum())
+        good = out["status"] <= 1
+        k, s, p = np.where(good, out["kappa"], k), np.where(good, out["side_strain"], s), np.where(good, p1, p)
+    assert snaps > 0
+
+
+def test_the_numpy_vector_env_steps_like_the_compiled_one_under_branch_control():
+    kw = {"num_envs": 6, "step_control": "branch", "free_table": False, "info_level": "full"}
+    envs = [gym.make_vec("PneuNetGrasp-v0", backend=b, **kw) for b in ("numpy",) + (("numba",) if HAVE_FUSED else ())]
+    for e in envs:
+        e.reset(seed=4)
+    rng = np.random.default_rng(0)
+    for _ in range(30):
+        a = rng.uniform(-0.5, 1.5, (6, 1)).astype(np.float32)
+        out = [e.step(a) for e in envs]
+        assert out[0][4]["solver_converged"].all()
+        for other in out[1:]:
+            for j in range(4):
+                assert np.array_equal(out[0][j], other[j])
+            assert np.abs(out[0][4]["curvature_per_m"] - other[4]["curvature_per_m"]).max() <= 1e-9
 
 
 @pytest.mark.skipif(not HAVE_FUSED, reason="the compiled steps need numba")
