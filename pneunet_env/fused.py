@@ -100,6 +100,8 @@ def _make_loop(stamp: int, variant: int):
         delta_in = eq.indentation
         touch_in = eq.in_contact
         dv_in = eq.volume_change
+        gn_in = eq.gradient_norm
+        lmin_in = eq.min_eigenvalue
         failure = thresholds.failure_traction
         crush = thresholds.crush_indentation
         grip = thresholds.grip_traction
@@ -161,10 +163,17 @@ def _make_loop(stamp: int, variant: int):
                 n_start = 1
             # Where the pressure did not change and the start is a converged minimum (the descent's own test, on
             # its own numbers), the continuation would return the start unchanged with no work: skip the call.
+            # With the cached evaluation, those numbers are the state's own: its gradient norm and smallest
+            # eigenvalue were computed from that evaluation when the state was accepted (bit for bit; held envs'
+            # steps 80 -> 51 ns without the hypot and the eigenvalues).
             skip = False
             if p == p_in[i] and ev0.ok:
-                gn0 = math.hypot(ev0.g_kappa, ev0.g_strain)
-                lmin0 = sym2_eigvals(ev0.h_kk, ev0.h_ks, ev0.h_ss)[0]
+                if n_start == 0:
+                    gn0 = gn_in[i]
+                    lmin0 = lmin_in[i]
+                else:
+                    gn0 = math.hypot(ev0.g_kappa, ev0.g_strain)
+                    lmin0 = sym2_eigvals(ev0.h_kk, ev0.h_ks, ev0.h_ss)[0]
                 skip = gn0 <= gtol and lmin0 > 0.0
             spent = 0  # the work of a try along the free table that could not take the step
             spent_back = 0
