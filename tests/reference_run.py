@@ -176,7 +176,8 @@ SCENARIOS: dict[str, Callable[[dict[str, Any]], None]] = {
     "vector_numpy": lambda out: _vector(out, "vector_numpy", 14, 3, backend="numpy", mask_at=6, **JUMP),
     "vector_torch": lambda out: _vector(out, "vector_torch", 10, 29, backend="torch", mask_at=4, max_substeps=14,
                                         **JUMP),
-    # the defaults since 0.12 (the free table and step_control "branch"): the same episodes as their "jump" twins
+    # the defaults since 0.12 (the free table and step_control "branch"); their "jump" twins: single_free_table,
+    # single_paper_volume (also without the table), vector_numba_free_table, vector_numpy (none for the budget's one)
     "single_branch": lambda out: _single(out, "single_branch", "PneuNetGrasp-v0", 40, 7),
     "single_paper_branch": lambda out: _single(out, "single_paper_branch", "PneuNetGrasp-Paper-v0", 30, 11,
                                                observe_volume=True),

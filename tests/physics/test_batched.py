@@ -73,7 +73,7 @@ def random_steps():
     return k, s, p0, p1, kobj, ko
 
 
-CONTROLS = [DEFAULT_OPTIONS, SolverOptions(step_control="branch")]
+CONTROLS = [SolverOptions(step_control="jump"), SolverOptions(step_control="branch")]
 
 
 @pytest.mark.parametrize("options", CONTROLS, ids=lambda o: o.step_control)

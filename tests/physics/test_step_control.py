@@ -68,7 +68,7 @@ def test_every_state_on_hard_paths_is_a_minimum_under_branch_control():
     ]
     for params, kobj, ps in cases:
         path = load_path(ps, kobj, KO, params, options=options)
-        reference = load_path(ps, kobj, KO, params)
+        reference = load_path(ps, kobj, KO, params, options=SolverOptions(step_control="jump"))
         assert np.array_equal(path.snapped, reference.snapped)
         assert np.abs(path.curvature - reference.curvature).max() <= 1e-9
         for eq in path.equilibria:
@@ -88,8 +88,9 @@ def test_step_control_is_checked():
 
 @pytest.mark.parametrize("gent", [50.0, 20.0])
 def test_the_masked_solver_makes_the_scalar_solvers_decisions_under_branch_control(gent):
-    """Random walks batched through the masked solver (numpy; torch runs the same code): every step's status, snap,
-    evaluation count and state that of the scalar continuation. Long sub-steps, their midpoint tests (accepted and
+    """Random walks batched through the masked solver (numpy; torch runs the same code, checked through the envs in
+    tests/envs/test_torch_backend.py): every step's status, snap, work counts and state those of the scalar
+    continuation. Long sub-steps, their midpoint tests (accepted and
     rejected), predictors outside the domain and folds all occur."""
     rng = np.random.default_rng(5)
     n, steps = 120, 12
@@ -103,7 +104,7 @@ def test_the_masked_solver_makes_the_scalar_solvers_decisions_under_branch_contr
         p1 = np.clip(p + rng.uniform(-0.2, 0.2, n), 0.0, 1.2)
         ref = [step_state(k[i], s[i], p[i], p1[i], prm, kobj[i], ko[i], opts) for i in range(n)]
         out = solve_masked(k, s, p, p1, kobj, ko, prm, opts, np.ones(n, bool), xp.NUMPY)
-        for name in ("status", "snapped", "evaluations", "substeps", "iterations"):
+        for name in ("status", "snapped", "evaluations", "substeps", "iterations", "backtracks"):
             assert np.array_equal(out[name], [getattr(r, name) for r in ref]), name
         for name in ("kappa", "side_strain"):
             assert np.abs(out[name] - [getattr(r, name) for r in ref]).max() <= 1e-12, name

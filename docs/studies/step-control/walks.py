@@ -2,7 +2,7 @@
 
 ``python walks.py OUT.npz MAX_JUMP [GENT_LIMIT]``; the environment's ``STEP`` (largest pressure step, ``p~``), ``KLO``
 and ``KHI`` (``log10`` of the objects' ``k~`` range; one walk in ten is free) set the walks, ``STEP_CONTROL`` the
-solver's ``step_control`` (``jump``, the default, or ``branch``).
+solver's ``step_control`` (``jump``, this script's default and the package's until 0.12, or ``branch``).
 """
 
 import os
