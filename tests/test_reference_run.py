@@ -28,10 +28,10 @@ Added since, with every earlier entry unchanged bit for bit:
   with ``"jump"`` (``JUMP``), and the ``*_branch`` ones with the defaults. Against their ``"jump"`` twins
   (``single_free_table``, ``single_paper_volume``, ``vector_numba_free_table``, ``vector_numpy``; the ring's twin runs
   without the free table too, and against the ring run with the table under ``"jump"`` the differences are the same
-  figures) every observation, reward, flag, status, snap and string is the same; the states differ by at most 1.6e-13 (single) and 8.0e-12
-  (the paper's ring: indentation), energies' Hessians' smallest eigenvalues by 3.6e-11, the volume changes in mm^3
-  by 1.9e-9; the work counters differ. ``vector_numba_array_branch`` has no twin: under its small sub-step budget
-  the longer sub-steps converge where ``"jump"`` spent the budget, so its episodes differ.
+  figures) every observation, reward, flag, status, snap and string is the same; the states differ by at most 1.6e-13
+  (single) and 8.0e-12 (the paper's ring: indentation), energies' Hessians' smallest eigenvalues by 3.6e-11, the
+  volume changes in mm^3 by 1.9e-9; the work counters differ. ``vector_numba_array_branch`` has no twin: under its
+  small sub-step budget the longer sub-steps converge where ``"jump"`` spent the budget, so its episodes differ.
 """
 
 from __future__ import annotations
