@@ -443,9 +443,8 @@ def _single_for(params_type: type, task_kinds: str):
     key = (params_type, task_kinds)
     if key not in _SINGLES:
         fn = _make_single(0)
-        # the same code, reading this section's unpacking as its global _unpack (and the loop as it is now)
-        names = {**fn.__globals__, "_unpack": _make_unpack(params_type, task_kinds),
-                 "_loop_single": numba.njit(_make_loop(0, 2), inline="always", nogil=True)}
+        # the same code, reading this section's unpacking as its global _unpack
+        names = {**fn.__globals__, "_unpack": _make_unpack(params_type, task_kinds)}
         fn = types.FunctionType(fn.__code__, names, fn.__name__, fn.__defaults__, fn.__closure__)
         _SINGLES[key] = numba.njit(fn, nogil=True)
     return _SINGLES[key]

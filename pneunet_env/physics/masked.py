@@ -35,7 +35,6 @@ from pneunet_env.physics.solver import (
     ACCEPT_GTOL,
     ARMIJO,
     BRANCH_MIDPOINT_FRACTION,
-    BRANCH_PREDICTED_CHANGE,
     EASY_CORRECTOR_ITERATIONS,
     ENERGY_ROUNDOFF,
     ESCAPE_GRADIENT,
@@ -43,7 +42,6 @@ from pneunet_env.physics.solver import (
     GROW,
     LAST_STEP_SLACK,
     MIN_STEP_LENGTH,
-    PREDICTED_JUMP_FRACTION,
     SHRINK,
     STATUS_BUDGET,
     STATUS_CONVERGED,
@@ -57,6 +55,7 @@ from pneunet_env.physics.solver import (
     Solve,
     hermite_midpoint,
     make_sym2,
+    predicted_change_limit,
 )
 from pneunet_env.physics.xp import Ops, copy
 
@@ -113,6 +112,7 @@ def kernels(ops: Ops) -> Kernels:
 
 
 _hermite_midpoint = getattr(hermite_midpoint, "py_func", hermite_midpoint)  # the scalar formula, on arrays
+_predicted_change_limit = getattr(predicted_change_limit, "py_func", predicted_change_limit)  # (Python numbers)
 
 
 def _hessian_solve(hkk, hks, hss, a, b, W):
@@ -316,9 +316,7 @@ def _follow_loop(m, corr_iter, min_step, max_jump, max_substeps, control, ops: O
     tangent, tk, ts = _hessian_solve(m["bhkk"], m["bhks"], m["bhss"], m["bvk"], m["bvs"], W)
     rate = mx(A(tk), A(ts))
     h = m["h"]
-    predicted_limit = PREDICTED_JUMP_FRACTION * max_jump
-    if control == 1:  # "branch": a longer predicted change, accepted where its ends lie on one branch
-        predicted_limit = max(BRANCH_PREDICTED_CHANGE, predicted_limit)
+    predicted_limit = _predicted_change_limit(max_jump, control)  # ("branch": longer, accepted on one branch)
     limit = tangent & (h * rate > predicted_limit)
     h = W(limit, mx(predicted_limit / W(limit, rate, 1.0), min_step), h)
     p, p1, bk, bs = m["p"], m["p1"], m["bk"], m["bs"]

@@ -371,6 +371,17 @@ def hessian_solve(e, a, b):
 
 
 @njit
+def predicted_change_limit(max_jump, control):
+    """The largest state change ``max(|d kappa~|, |d e_s|)`` a sub-step's tangent may predict (the sub-step is sized
+    to it): ``PREDICTED_JUMP_FRACTION max_jump`` under ``step_control="jump"`` (``control`` 0), at least
+    :data:`BRANCH_PREDICTED_CHANGE` under ``"branch"`` (1)."""
+    limit = PREDICTED_JUMP_FRACTION * max_jump
+    if control == 1:
+        limit = max(BRANCH_PREDICTED_CHANGE, limit)
+    return limit
+
+
+@njit
 def hermite_midpoint(k0, s0, tk0, ts0, k1, s1, tk1, ts1, dp):
     """The middle of the cubic Hermite interpolant between two states ``(k0, s0)`` and ``(k1, s1)`` a pressure ``dp``
     apart, with tangents ``dx/dp`` ``(tk0, ts0)`` and ``(tk1, ts1)``: ``(x0 + x1) / 2 + dp (t0 - t1) / 8``
@@ -513,9 +524,7 @@ def _make_parts(terms, jit=njit):
         # step's last one); returns follow_ev's tuple and the evaluation at the answer.
         gtol, max_iter, corr_iter, max_step, min_step, max_jump, eig_floor, max_substeps, control = opts
         # control 1 ("branch"): a predicted change up to BRANCH_PREDICTED_CHANGE, accepted when one branch (below)
-        predicted_limit = PREDICTED_JUMP_FRACTION * max_jump
-        if control == 1:
-            predicted_limit = max(BRANCH_PREDICTED_CHANGE, predicted_limit)
+        predicted_limit = predicted_change_limit(max_jump, control)
         # Polish the start so that the tangent is taken at an equilibrium (at an equilibrium: one evaluation).
         k, s, U, gn, lmin, iters, status, ev, n_eval, n_back = descend(k, s, p0, prm, kobj, ko, gtol, max_iter,
                                                                        eig_floor, ev0, k, s, math.inf)
