@@ -15,7 +15,9 @@ How the test keeps the repository out of the picture:
   would quietly serve any module missing from the wheel from the repository, is never installed. (It also works
   when the tests themselves run inside a venv, where ``--system-site-packages`` would see the base interpreter's
   packages, not this one's);
-* every command runs in a fresh empty folder, without ``PYTHONPATH`` and without the user site.
+* every command runs in a fresh empty folder, without ``PYTHONPATH`` and without the user site;
+* a venv inside the repository (``.venv``, where the README puts it) is this interpreter's, not the repository's
+  source: its site-packages are listed like any other.
 
 Slow (about 10-20 s: a wheel build, a venv and the demo): ``python -m pytest tests/test_wheel.py -m slow``.
 """
@@ -109,12 +111,14 @@ def _report(res: subprocess.CompletedProcess, what: str) -> str:
 def _dependency_paths() -> list[str]:
     """This interpreter's package folders (site-packages and what its .pth files add), minus the repository."""
     stdlib = {Path(sysconfig.get_paths()[k]).resolve() for k in ("stdlib", "platstdlib")}
+    prefix = Path(sys.prefix).resolve()  # this interpreter's own folders: a venv at ROOT/.venv, as the README puts it
     out: list[str] = []
     for entry in sys.path:
         if not entry or not Path(entry).is_dir():
             continue
         p = Path(entry).resolve()
-        if p == ROOT or ROOT in p.parents or p in stdlib or (p.parent in stdlib and p.name == "lib-dynload"):
+        in_repo = p == ROOT or (ROOT in p.parents and not (p == prefix or prefix in p.parents))
+        if in_repo or p in stdlib or (p.parent in stdlib and p.name == "lib-dynload"):
             continue
         if str(p) not in out:
             out.append(str(p))

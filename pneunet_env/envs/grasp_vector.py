@@ -11,9 +11,10 @@ with the masked solver :mod:`pneunet_env.physics.masked`).
 It is, step for step, ``gym.make_vec("PneuNetGrasp-v0", num_envs=N, vectorization_mode="sync",
 vector_kwargs={"autoreset_mode": AutoresetMode.SAME_STEP})`` (N single envs) computed as arrays: the same
 observations, rewards, ends, info (Gymnasium's vector convention, a dict of ``(N,)`` arrays with ``_key``
-masks) and random objects, to round-off (tested to 1e-10, with episodes that end and auto-reset), on the same step:
-the single envs and the fused numba step follow free steps along the free actuator's table (``solver.free_table``),
-the array step (``fused=False``, numpy, torch) does not, so against those compare with ``free_table=False``.
+masks) and random objects, with episodes that end and auto-reset. With the numba back-end's fused step that holds
+bit for bit on one install (tested): both draw objects through the same ufuncs and step through the same compiled
+loop. The array step (``fused=False``, numpy, torch) gives the same to round-off (tested to 1e-10), and follows no
+free steps along the free actuator's table (``solver.free_table``), so against it compare with ``free_table=False``.
 """
 
 from __future__ import annotations

@@ -81,6 +81,7 @@ def winkler_stiffness(shear_modulus_kpa, thickness_mm, curvature_per_m, width_mm
         width_mm, scale_modulus_kpa: the model's scales ``w`` (mm) and ``mu`` (kPa).
     """
     H = thickness_mm * 1e-3
-    factor = 1.0 / (1.0 - H * curvature_per_m) ** 2 - 1.0
+    q = 1.0 - H * curvature_per_m
+    factor = 1.0 / (q * q) - 1.0  # q * q, not q ** 2: a float's ** (libm pow) and an array's (a square) may differ
     k_obj_kpa_per_m = 2.0 * shear_modulus_kpa * curvature_per_m * factor
     return k_obj_kpa_per_m * 1e-3 * width_mm / scale_modulus_kpa
