@@ -657,7 +657,7 @@ PROG = "pneunet-grasp evaluate"
 
 
 def run(args: argparse.Namespace) -> int:
-    from agents.policies import make_policy
+    from agents.policies import make_policy, tuned_schedules_text, warn_untuned
     from pneunet_env.extras import require_extra
 
     if args.objects < 0:
@@ -674,8 +674,12 @@ def run(args: argparse.Namespace) -> int:
     try:
         config = load_config(args.config, **parse_overrides(args.overrides))
         model = default_model(config)
+        if args.policy is None and model is not None:  # the default policies run the task's PPO model too
+            require_extra("evaluate", "stable_baselines3", "rl", f"the default policies' PPO model ({model.name})",
+                          skip=" ".join(f"--policy {p}" for p in DEFAULT_POLICIES))
         specs = args.policy or list(DEFAULT_POLICIES) + ([str(model)] if model is not None else [])
         entries = [make_policy(s, config, config_path=args.config) for s in specs]
+        warn_untuned(PROG, entries, args.config, args.overrides)
         drawn = config.objects.from_catalogue
         if drawn:
             grid, edges = stiffness_bins(config, args.stiffness_grid, args.k_min, args.k_max)
@@ -708,6 +712,8 @@ def run(args: argparse.Namespace) -> int:
     print(f"  {damage_rule_text(config)}")
     print(f"  {slip_rule_text(config)}")
     print(f"  {regime_text(config)}")
+    if tuned := tuned_schedules_text(entries):
+        print(f"  {tuned}")
     bins = sorted({r["object_stiffness"] for r in rows})
     if drawn:
         print(f"{len(entries)} policies x {len(bins)} k~ bins from {edges[0]:.2g} to {edges[-1]:.2g} x up to "
@@ -746,7 +752,8 @@ def run(args: argparse.Namespace) -> int:
                  "damage": damage_rule_text(config), "slip": slip_rule_text(config), "regimes": regime_text(config),
                  "grid": ("objects drawn by the env into log-spaced k~ bins (nothing pinned)" if drawn
                           else "k~ pinned on a log-spaced grid")},
-        "policies": {e.name: {"label": e.label, "env_id": e.env_id, "blind": e.blind} for e in entries},
+        "policies": {e.name: {"label": e.label, "env_id": e.env_id, "blind": e.blind,
+                              **({"tuned_on": e.tuned_on} if e.tuned_on else {})} for e in entries},
         "regimes": regime_summary(rows, paper_bins),
         "regime_bounds": ({"soft": f"k~ < {SOFT_MAX:g}", "stiff": f"k~ >= {STIFF_MIN:g}",
                            "note": "the paper's k~ bins, on its ring"} if paper_bins else None),

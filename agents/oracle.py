@@ -43,7 +43,9 @@ def default_resolution(config: EnvConfig) -> float:
 
 class OraclePlan(dict):
     """The oracle's choice for one object: ``target`` (fraction of ``p_max``), ``pressure_kpa``, ``margin``
-    (natural log; > 0 is feasible), ``feasible`` (bool), ``grip_ratio``, ``damage_ratio`` at the target."""
+    (natural log; > 0 is feasible), ``feasible`` (bool), ``grip_ratio``, ``damage_ratio`` at the target, and
+    ``reached_kpa``: the highest pressure of the grid that the loading path reaches (``max_pressure_kpa``, or less
+    where the path ends: see :func:`plan_target`)."""
 
 
 def plan_target(
@@ -65,6 +67,12 @@ def plan_target(
         config: the env's config (actuator, pressure range, solver).
         resolution_kpa: the pressure grid's spacing; ``None``: ``max_pressure_kpa / 120`` (:data:`GRID_POINTS`;
             0.5 kPa at the default 60 kPa), so a soft actuator's few kPa get as fine a grid as Table 1's.
+
+    The candidates are the pressures the loading path reaches. Where it ends below ``max_pressure_kpa`` (from some
+    pressure on the solver finds no equilibrium: a neo-Hookean material, ``gent_limit: 1e9``, whose actuator
+    balloons or bends shut without the Gent limit's stiffening, or a very soft one, ``shear_modulus_kpa: 0.1``, at
+    hundreds of ``mu``), the pressures above its end are not candidates: the env's step fails there as well, and its
+    episode truncates. ``reached_kpa`` says where it ended.
     """
     resolution_kpa = default_resolution(config) if resolution_kpa is None else resolution_kpa
     if not resolution_kpa > 0.0:
@@ -73,11 +81,16 @@ def plan_target(
     n = max(2, int(math.ceil(config.task.max_pressure_kpa / resolution_kpa)) + 1)
     ps = np.linspace(0.0, p_max, n)
     lp = load_path(ps, object_stiffness, object_curvature, config.actuator_params, config.solver)
-    if not lp.converged.all():  # pragma: no cover - never seen; reported rather than hidden
-        raise RuntimeError(f"oracle: the loading path did not converge for k~={object_stiffness:g}")
-    F = lp.contact_force
-    in_contact = np.array([e.in_contact for e in lp.equilibria])
-    delta = np.where(in_contact, lp.indentation, 0.0)
+    # the path's end: its first pressure without an equilibrium, and every one above it (the env's step fails there
+    # too, and its episode truncates): a soft or neo-Hookean material's actuator that bends shut or balloons
+    reached = int(np.argmin(lp.converged)) if not lp.converged.all() else n
+    if reached == 0:  # pragma: no cover - rest, at p = 0, is an equilibrium of every valid material
+        raise ValueError(f"oracle: the material (shear modulus {config.actuator.shear_modulus_kpa:g} kPa, Gent limit "
+                         f"{config.actuator.gent_limit:g}) has no equilibrium at rest: the loading path cannot start")
+    ps = ps[:reached]
+    F = lp.contact_force[:reached]
+    in_contact = np.array([e.in_contact for e in lp.equilibria[:reached]])
+    delta = np.where(in_contact, lp.indentation[:reached], 0.0)
     with np.errstate(divide="ignore"):
         damage = np.maximum(F / failure_traction if failure_traction > 0 else np.inf * (F > 0),
                             delta / crush_indentation)
@@ -93,6 +106,7 @@ def plan_target(
         feasible=bool(margin[i] >= 0.0),
         grip_ratio=float(grip[i]),
         damage_ratio=float(worst[i]),
+        reached_kpa=float(ps[-1] * config.actuator.shear_modulus_kpa),
     )
 
 

@@ -13,7 +13,11 @@ spec                  policy                                                    
 
 Parameters follow a colon, comma-separated: ``ramp:target_kpa=30,steps=20``, ``step:target_kpa=45``,
 ``best-ramp:path=runs/best.json``, ``oracle:resolution_kpa=0.25``, ``rigid:target_mm=9,steps=10``,
-``rigid:path=...``. (``target=`` takes a fraction of ``p_max`` or of the jaw travel instead.)
+``rigid:path=...``. (``target=`` takes a fraction of ``p_max`` or of the jaw travel instead.) A tuned schedule's file
+is defined in kPa (mm for the jaw: :func:`agents.scripted.ramp_target`): another ``max_pressure_kpa`` never moves it,
+and one above the config's maximum is refused. A config file's own schedule beside it that cannot be read, or that is
+missing where the config describes another actuator than the package's schedule was tuned for, is refused by name
+(:func:`tuned_path`, :func:`_refuse_another_actuator`).
 
 A policy maps an observation (or a batch) to an action in ``Box(-1, 1, (1,))``, has ``predict`` (SB3's
 signature) and ``begin_episode(info)`` (called with ``reset``'s ``info``; only the oracle uses it).
@@ -24,9 +28,10 @@ An SB3 model ``DIR/NAME.zip`` is loaded with the algorithm named in ``DIR/NAME.j
 (:class:`NormalizationStats`), read without ``pickle``. ``PATH.zip:vecnormalize=STATS,action=setpoint`` names
 them (and the action mode) explicitly. The action mode (``rate``: the env's pressure change; ``setpoint``: a
 commanded pressure) is never guessed: both have the same action space, so a model with no metadata (no
-``NAME.json`` and no training run's ``run.json`` around it), or a cut one, is refused by name unless the spec gives
-``action=``. A cut or damaged model zip is refused by name too. torch and stable-baselines3 are imported only for
-such a model.
+``NAME.json`` and no training run's ``run.json`` around it), a cut one, or one that contradicts the hyperparameters
+it records (``"action": "rate"`` beside a training through the ``PressureSetpoint`` wrapper), is refused by name
+unless the spec gives ``action=``. A cut or damaged model zip is refused by name too. torch and stable-baselines3
+are imported only for such a model.
 
 **Security: load only models you trust.** A model ``.zip`` is code: stable-baselines3 unpickles parts of it
 (``cloudpickle``), so loading one runs whatever its author put there. Statistics are never unpickled implicitly:
@@ -54,11 +59,12 @@ from agents.scripted import LinearRamp, StepPolicy, load_ramp
 from pneunet_env.config import EnvConfig
 from pneunet_env.files import atomic_write_bytes, stage_file  # noqa: F401  (re-exported: the one atomic writer)
 from pneunet_env.wrappers import setpoint_to_rate
-from pneunet_env.yamlio import load_json_file
+from pneunet_env.yamlio import check_input_file, load_json_file, short_repr
 
 __all__ = ["PolicyEntry", "REGISTRY", "make_policy", "parse_spec", "SB3Policy", "BEST_RAMP_PATH", "BEST_RIGID_PATH",
            "vecnormalize_path", "setpoint_to_rate", "ACTION_MODES", "NormalizationStats", "RunningStats",
-           "convert_vecnormalize", "atomic_write_bytes", "stage_file", "check_model_zip"]
+           "convert_vecnormalize", "atomic_write_bytes", "stage_file", "check_model_zip", "schedule_origin",
+           "tuned_schedules_text", "warn_untuned"]
 
 AGENTS_DIR = Path(__file__).resolve().parent
 BEST_RAMP_PATH = AGENTS_DIR / "best_ramp.json"
@@ -83,9 +89,20 @@ def tuned_path(config: EnvConfig, gripper: str = "pneunet", *, config_path: str 
 
     ``config_path``: the YAML file ``config`` was loaded from, if any. A schedule shipped beside it
     (:func:`_beside_path`: ``DIR/NAME.best_ramp.json`` or ``DIR/NAME.best_rigid.json``) wins when it exists, whatever
-    overrides were applied on top of the file; else the package's own, as above.
+    overrides were applied on top of the file; else the package's own, as above (``best-ramp`` refuses that for a
+    config of another actuator: :func:`_refuse_another_actuator`).
+
+    Raises:
+        ValueError: the schedule beside the config exists but is not a regular file (a folder, a device, a FIFO, a
+            link to nothing): named, never skipped for another schedule.
     """
-    if config_path is not None and (beside := _beside_path(config_path, gripper)).is_file():
+    if config_path is not None and os.path.lexists(beside := _beside_path(config_path, gripper)):
+        if not beside.is_file():
+            what = ("a link to nothing" if not beside.exists() else "a folder" if beside.is_dir()
+                    else "not a regular file (a device, a FIFO or a socket)")
+            raise ValueError(f"the schedule beside the config {str(config_path)!r}, {str(beside)!r}, is {what}: "
+                             "replace it with the config's ramp file, remove it, or name another schedule "
+                             f"(--policy {'rigid' if gripper == 'rigid' else 'best-ramp'}:path=FILE)")
         return beside
     paper = not config.objects.from_catalogue
     if gripper == "rigid":
@@ -109,6 +126,10 @@ class PolicyEntry:
         command: what the observation and action move: ``"pressure"`` or ``"jaw"``.
         env_kwargs: extra keyword arguments for ``gym.make`` (the rigid gripper's travel; a trained model's
             ``observe_volume``).
+        tuned_on: a tuned schedule's file and what it was tuned on, in words (:func:`schedule_origin`); ``""`` for
+            a policy that is not loaded from a tuned schedule.
+        fits_objects: whether the config's objects are the ones that schedule was tuned on; ``None`` where that is
+            not known (a schedule given by ``path=``) or does not apply.
     """
 
     name: str
@@ -118,6 +139,8 @@ class PolicyEntry:
     blind: bool = True
     command: str = "pressure"
     env_kwargs: dict[str, Any] = field(default_factory=dict)
+    tuned_on: str = ""
+    fits_objects: bool | None = None
 
     def make_env(self, config: EnvConfig):
         """``gym.make`` the policy's environment with ``config``."""
@@ -191,16 +214,140 @@ def _step(spec, params, config):
 
 
 def _best_ramp(spec, params, config, config_path=None):
-    path = Path(params.pop("path", tuned_path(config, config_path=config_path)))
+    given = params.pop("path", None)
+    path = Path(given) if given is not None else tuned_path(config, config_path=config_path)
     _check_empty(spec, params, "path")
+    if given is None and config_path is not None:
+        _refuse_another_actuator(path, config_path)
     pol = load_ramp(path, config)
     label = f"best-ramp ({_describe(pol, config.task.max_pressure_kpa, 'kPa')}{_source(path)})"
-    return PolicyEntry(spec, label, pol)
+    tuned_on, fits = schedule_origin(path, config, config_path=config_path)
+    return PolicyEntry(spec, label, pol, tuned_on=tuned_on, fits_objects=fits)
+
+
+def _package_task(path: Path) -> EnvConfig | None:
+    """The config a package schedule (``agents/best_*.json``) was tuned on: the default task, or the paper's; ``None``
+    for any other file."""
+    from pneunet_env import PAPER_TASK
+    from pneunet_env.config import load_config
+
+    where = path.resolve()
+    if where in (BEST_RAMP_PATH, BEST_RIGID_PATH):
+        return EnvConfig()
+    if where in (BEST_RAMP_PAPER_PATH, BEST_RIGID_PAPER_PATH):
+        return load_config(None, **PAPER_TASK)
+    return None
+
+
+def _refuse_another_actuator(path: Path, config_path: str | os.PathLike) -> None:
+    """``ValueError`` where ``best-ramp`` would run the package's schedule ``path`` (none lies beside the config file
+    ``config_path``) on a config of another actuator than the one it was tuned for (a designed config copied without
+    its ``.best_ramp.json``): its kPa were found for Table 1's actuator and mean nothing for another. The error names
+    the missing file, the schedule it would have run, and how to give one. A config of Table 1's actuator runs the
+    package's schedule, as before."""
+    from pneunet_env.config import load_config
+
+    tuned = _package_task(path)
+    if tuned is None or load_config(config_path).actuator == tuned.actuator:
+        return
+    data = load_json_file(path, "ramp file")
+    beside = _beside_path(config_path)
+    raise ValueError(f"best-ramp: the config {str(config_path)!r} describes another actuator than the package's "
+                     f"schedule agents/{path.name} ({data.get('target_kpa', '?')} kPa over {data.get('n_steps', '?')} "
+                     f"steps) was tuned for (Table 1's), and its own schedule {str(beside)!r} is missing: put that "
+                     f"file beside it, tune one (pneunet-grasp search --config {config_path}), or name a schedule "
+                     "(--policy best-ramp:path=FILE)")
 
 
 def _source(path: Path) -> str:
     """``"; from NAME.best_ramp.json"`` for a schedule outside the package (a config's own, or ``path=``)."""
     return "" if path.resolve().parent == AGENTS_DIR else f"; from {path.name}"
+
+
+def _objects_key(objects) -> tuple:
+    """What an object draw is, for comparing two configs' objects: the catalogue's classes and weights, or the
+    ranges (the fields that the other kind of draw ignores are left out)."""
+    from pneunet_env.config import RANGE_FIELDS
+
+    if objects.from_catalogue:
+        return ("catalogue", objects.class_items)
+    return ("ranges", tuple(tuple(getattr(objects, f)) for f in RANGE_FIELDS))
+
+
+def _ring_text(objects) -> str:
+    """``"its 250 mm ring"`` where the ranges fix the object's outer radius, else ``"objects from ranges"``."""
+    lo, hi = objects.object_curvature_per_m
+    return f"its {1e3 / lo:.3g} mm ring" if lo == hi else "objects from ranges"
+
+
+def schedule_origin(path: str | os.PathLike, config: EnvConfig, gripper: str = "pneunet", *,
+                    config_path: str | os.PathLike | None = None) -> tuple[str, bool | None]:
+    """What the tuned schedule file ``path`` was tuned on, in words, and whether ``config``'s objects are those.
+
+    The package's schedules were searched on the default task (``agents/best_ramp.json``, ``best_rigid.json``: the
+    catalogue's default use case) and on the paper's task (``*_paper.json``: its ring, objects from ranges); one
+    shipped beside a config file (:func:`tuned_path`) on that file's objects. Returns ``(text, fits)``: ``text`` as
+    ``"agents/best_ramp_paper.json, tuned on the paper's task (its 250 mm ring)"``; ``fits`` ``True`` when
+    ``config`` draws the same objects (the same catalogue classes and weights, or the same ranges), ``False`` when
+    not, ``None`` for any other file (given by ``path=``: what it was tuned on is not known here).
+    """
+    from pneunet_env.config import load_config
+
+    path = Path(path)
+    where = path.resolve()
+    if (package := _package_task(path)) is not None:
+        tuned = package.objects
+        text = (f"agents/{path.name}, tuned on the default task (the catalogue's {tuned.use_case!r} use case)"
+                if where in (BEST_RAMP_PATH, BEST_RIGID_PATH) else
+                f"agents/{path.name}, tuned on the paper's task ({_ring_text(tuned)})")
+    elif config_path is not None and where == _beside_path(config_path, gripper).resolve():
+        tuned = load_config(config_path).objects
+        text = f"{path.name}, tuned for the config {Path(config_path).name} (beside it)"
+    else:
+        return f"{path} (given by path=: what it was tuned on is not recorded here)", None
+    return text, _objects_key(config.objects) == _objects_key(tuned)
+
+
+def tuned_schedules_text(entries) -> str:
+    """``"tuned schedules: best-ramp: agents/best_ramp.json, tuned on ...; rigid: ..."``: which file each tuned
+    schedule (``best-ramp``, ``rigid``) was loaded from and what it was tuned on (:func:`schedule_origin`); ``""``
+    where no policy runs one."""
+    parts = [f"{e.name}: {e.tuned_on}" for e in entries if e.tuned_on]
+    return f"tuned schedules: {'; '.join(parts)}" if parts else ""
+
+
+def warn_untuned(prog: str, entries, config_path: str | None = None, overrides=()) -> bool:
+    """Warn (one line on stderr, :func:`pneunet_env.extras.warn`) where a tuned schedule runs on objects it was not
+    tuned on (no shipped schedule was tuned for the config's objects): it names each such schedule, what it was
+    tuned on, and the ``pneunet-grasp search`` command that tunes one for these objects (its output beside
+    ``config_path``, where a config file is given, so that ``best-ramp`` and ``rigid`` then load it). ``overrides``:
+    the ``--set KEY=VALUE`` items as typed. Returns whether it warned."""
+    import shlex
+
+    from pneunet_env.extras import PROG as ROOT
+    from pneunet_env.extras import warn
+
+    off = [e for e in entries if e.fits_objects is False]
+    if not off:
+        return False
+    sets = "".join(f" --set {shlex.quote(str(o))}" for o in overrides)
+    commands, loads = [], []
+    for e in off:
+        rigid = e.command == "jaw"
+        if config_path is not None:
+            out = _beside_path(config_path, "rigid" if rigid else "pneunet")
+        else:
+            out = Path("best_rigid.json" if rigid else "best_ramp.json")
+        commands.append(f"{ROOT} search{' --gripper rigid' if rigid else ''}"
+                        f"{f' --config {shlex.quote(str(config_path))}' if config_path is not None else ''}{sets} "
+                        f"--out {shlex.quote(str(out))}")
+        loads.append(f"--policy {'rigid' if rigid else 'best-ramp'}:path={shlex.quote(str(out))}")
+    runs = "; ".join(f"{e.name} runs {e.tuned_on}" for e in off)
+    then = (f"which {prog.split()[-1]} then loads from beside the config" if config_path is not None
+            else f"then pass {' '.join(loads)}")
+    warn(prog, f"no shipped schedule was tuned for this config's objects: {runs}. Tune "
+               f"{'one' if len(off) == 1 else 'them'} for these objects with {' and '.join(commands)}, {then}")
+    return True
 
 
 def _describe(pol, full_scale: float, unit: str) -> str:
@@ -234,17 +381,16 @@ def _rigid(spec, params, config, config_path=None):
         _check_empty(spec, params, "target, target_mm, steps, travel_mm, path")
         pol = _load_rigid(path, config, full)
     label = f"rigid gripper ({_describe(pol, full, 'mm')}{'' if path is None else _source(path)})"
-    return PolicyEntry(spec, label, pol, env_id=RIGID_ENV, command="jaw", env_kwargs=env_kwargs)
+    tuned_on, fits = ("", None) if path is None else schedule_origin(path, config, "rigid", config_path=config_path)
+    return PolicyEntry(spec, label, pol, env_id=RIGID_ENV, command="jaw", env_kwargs=env_kwargs, tuned_on=tuned_on,
+                       fits_objects=fits)
 
 
 def _load_rigid(path: Path, config: EnvConfig, travel_mm: float):
-    """The saved jaw ramp; its target is stored in mm (travels differ between configs) and re-expressed here."""
-    pol = load_ramp(path, config)
-    data = load_json_file(path, "ramp file")
-    if "target_mm" in data:
-        target = min(float(data["target_mm"]) / travel_mm, 1.0)
-        pol = LinearRamp(target, pol.n_steps, config) if isinstance(pol, LinearRamp) else StepPolicy(target, config)
-    return pol
+    """The saved jaw ramp; its target is defined in mm (``target_mm``; travels differ between configs) and re-expressed
+    as a fraction of ``travel_mm`` here; one beyond the travel is refused, not clipped
+    (:func:`agents.scripted.ramp_target`)."""
+    return load_ramp(path, config, full_scale=travel_mm, unit="mm")
 
 
 REGISTRY: dict[str, Callable[[str, dict[str, str], EnvConfig], PolicyEntry]] = {
@@ -361,9 +507,17 @@ class RunningStats:
     def from_dict(cls, data: dict[str, Any]) -> RunningStats:
         mean = np.asarray(data["mean"], dtype=np.float64)
         var = np.asarray(data["var"], dtype=np.float64)
+        count = float(data["count"])
         if mean.shape != var.shape:
             raise ValueError(f"statistics: mean shape {mean.shape} != var shape {var.shape}")
-        return cls(mean, var, float(data["count"]))
+        # numbers that would reach the model as NaN (or divide by a negative variance's root) are refused here, not
+        # found inside torch ("invalid values: tensor([[nan]])")
+        if not (np.isfinite(mean).all() and np.isfinite(var).all() and (var >= 0.0).all()):
+            raise ValueError(f"the mean and the variance must be finite numbers, the variance >= 0, got mean "
+                             f"{mean.tolist()!r} and var {var.tolist()!r}")
+        if not (math.isfinite(count) and count >= 0.0):
+            raise ValueError(f"the count must be a finite number >= 0, got {count!r}")
+        return cls(mean, var, count)
 
 
 @dataclass
@@ -419,13 +573,45 @@ class NormalizationStats:
         if not isinstance(data, dict) or data.get("format") != STATS_FORMAT:
             raise ValueError(f"{source}: not a normalisation statistics file (format {STATS_FORMAT!r})")
         try:
-            return cls(norm_obs=bool(data["norm_obs"]), norm_reward=bool(data["norm_reward"]),
-                       clip_obs=float(data["clip_obs"]), clip_reward=float(data["clip_reward"]),
-                       epsilon=float(data["epsilon"]), gamma=float(data["gamma"]),
-                       obs_rms=None if data.get("obs_rms") is None else RunningStats.from_dict(data["obs_rms"]),
-                       ret_rms=None if data.get("ret_rms") is None else RunningStats.from_dict(data["ret_rms"]))
+            stats = cls(norm_obs=bool(data["norm_obs"]), norm_reward=bool(data["norm_reward"]),
+                        clip_obs=float(data["clip_obs"]), clip_reward=float(data["clip_reward"]),
+                        epsilon=float(data["epsilon"]), gamma=float(data["gamma"]),
+                        obs_rms=None if data.get("obs_rms") is None else RunningStats.from_dict(data["obs_rms"]),
+                        ret_rms=None if data.get("ret_rms") is None else RunningStats.from_dict(data["ret_rms"]))
+            for name in ("clip_obs", "clip_reward", "epsilon"):  # (a clip may be inf: no clipping)
+                if not getattr(stats, name) > 0.0:
+                    raise ValueError(f"{name} must be > 0, got {getattr(stats, name)!r}")
+            if not 0.0 <= stats.gamma <= 1.0:
+                raise ValueError(f"gamma must be in [0, 1], got {stats.gamma!r}")
+            return stats
         except (KeyError, TypeError, ValueError) as exc:
             raise ValueError(f"{source}: malformed statistics ({exc})") from None
+
+    def check_observation(self, shape: tuple[int, ...], source: str = "statistics") -> None:
+        """``ValueError`` naming ``source`` unless the observation statistics (where they normalise) have the shape
+        of the model's observation, ``shape`` (statistics of another env would fail inside SB3)."""
+        if self.norm_obs and self.obs_rms is not None and np.shape(self.obs_rms.mean) != tuple(shape):
+            raise ValueError(f"{source}: its observation statistics have shape {np.shape(self.obs_rms.mean)}, but the "
+                             f"model observes shape {tuple(shape)}: statistics of another model or env")
+
+    def to_vecnormalize(self, venv, training: bool = True, source: str = "statistics"):
+        """A ``VecNormalize`` around ``venv`` with these settings and statistics: what ``VecNormalize.load`` makes of
+        the pickle these numbers came from (its running returns start at zero, as ``set_venv`` sets them), without
+        unpickling anything. ``ValueError`` naming ``source`` where the observation statistics' shape is not
+        ``venv``'s observation's."""
+        from stable_baselines3.common.vec_env import VecNormalize
+
+        vn = VecNormalize(venv, training=training, norm_obs=self.norm_obs, norm_reward=self.norm_reward,
+                          clip_obs=self.clip_obs, clip_reward=self.clip_reward, gamma=self.gamma, epsilon=self.epsilon)
+        for name in ("obs_rms", "ret_rms"):
+            ours, theirs = getattr(self, name), vars(vn).get(name)  # no obs_rms without norm_obs
+            if ours is None or theirs is None:
+                continue
+            if np.shape(ours.mean) != np.shape(theirs.mean):
+                raise ValueError(f"{source}: {name} has shape {np.shape(ours.mean)}, but the env's is "
+                                 f"{np.shape(theirs.mean)}: statistics of another env")
+            theirs.mean, theirs.var, theirs.count = np.array(ours.mean), np.array(ours.var), float(ours.count)
+        return vn
 
     def save(self, path: str | Path) -> Path:
         """Write the JSON (atomically: a temporary file in the same folder, then ``os.replace``)."""
@@ -440,7 +626,9 @@ class NormalizationStats:
 
 
 def load_pickled_vecnormalize(path: str | Path):
-    """Unpickle a ``VecNormalize`` file. **Runs code from the file**: call it only on a path you trust."""
+    """Unpickle a ``VecNormalize`` file. **Runs code from the file**: call it only on a path you trust. A FIFO, a
+    device or a folder is refused by name before it is opened (:func:`pneunet_env.yamlio.check_input_file`)."""
+    check_input_file(path, f"statistics {short_repr(str(path))}")
     with open(path, "rb") as fh:
         return pickle.load(fh)
 
@@ -502,6 +690,11 @@ def _model_meta(path: Path) -> dict[str, Any]:
             raise _BrokenMeta(meta, f"unreadable ({type(exc).__name__}: {exc})") from None
         if not isinstance(data, dict):
             raise _BrokenMeta(meta, f"not a JSON mapping (a {type(data).__name__})")
+        said, trained = data.get("action"), _hp_action(data.get("hyperparameters"), decisive=True)
+        if said is not None and trained is not None and said != trained:
+            raise _BrokenMeta(meta, f"contradicts itself: it says action {said!r}, but the hyperparameters it records "
+                                    f"(the model's training) {_hp_words(data['hyperparameters'])}, which is action "
+                                    f"{trained!r}")
         return data if i == 0 else {k: data[k] for k in ("algo", "action") if k in data}
     return {}
 
@@ -535,20 +728,44 @@ def check_model_zip(path: str | Path) -> None:
                          "(an interrupted copy or save?), damaged, or another kind of zip; use another copy of it")
 
 
-def _hp_action(hp: Any) -> str | None:
-    """A training's hyperparameters -> its action mode (the setpoint wrapper in ``env_wrapper`` or
-    ``vec_env_wrapper``: ``setpoint``; else ``rate``), or ``None`` if they are not a mapping."""
-    if not isinstance(hp, dict):
-        return None
+_WRAPPER_KEYS = ("env_wrapper", "vec_env_wrapper")
+
+
+def _wrapper_names(hp: dict[str, Any]) -> list[str]:
+    """The classes a training's ``env_wrapper`` and ``vec_env_wrapper`` name (rl-zoo3's forms: a name, a list, a
+    ``{name: kwargs}``)."""
     names: list[str] = []
-    for key in ("env_wrapper", "vec_env_wrapper"):
+    for key in _WRAPPER_KEYS:
         value = hp.get(key)
         for item in value if isinstance(value, list) else [value]:
             if isinstance(item, dict):
                 names += [str(k) for k in item]
             elif item is not None:
                 names.append(str(item))
-    return "setpoint" if any(n.startswith("pneunet_env.wrappers.PressureSetpoint") for n in names) else "rate"
+    return names
+
+
+def _hp_action(hp: Any, *, decisive: bool = False) -> str | None:
+    """A training's hyperparameters -> its action mode: their ``action`` (0.1's project key), else the setpoint
+    wrapper in ``env_wrapper`` or ``vec_env_wrapper``: ``setpoint``; else ``rate``. ``None`` if they are not a
+    mapping, or (``decisive``) if they say neither (no ``action`` and no wrapper key: hyperparameters cut short, or
+    written by hand, are not read as ``rate``)."""
+    if not isinstance(hp, dict):
+        return None
+    if hp.get("action") in ACTION_MODES:
+        return str(hp["action"])
+    if decisive and not any(k in hp for k in _WRAPPER_KEYS):
+        return None
+    return "setpoint" if any(n.startswith("pneunet_env.wrappers.PressureSetpoint") for n in _wrapper_names(hp)) \
+        else "rate"
+
+
+def _hp_words(hp: dict[str, Any]) -> str:
+    """What a training's hyperparameters say about its action mode, in words (for an error message)."""
+    if hp.get("action") in ACTION_MODES:
+        return f"say action {hp['action']!r}"
+    names = _wrapper_names(hp)
+    return f"name the wrapper(s) {', '.join(names)}" if names else "name no wrapper (the env's own action)"
 
 
 def _action_mode(path: Path, meta: dict[str, Any], broken: _BrokenMeta | None) -> str:
@@ -635,6 +852,8 @@ class SB3Policy:
                 warnings.warn(f"model {str(path)!r}: ignoring its metadata {exc} (the action mode was given: "
                               f"{action})", stacklevel=2)
                 meta = {}
+        if broken is not None and action is None:  # a broken or self-contradicting sidecar: named before SB3 loads
+            _action_mode(self.path, meta, broken)
         self.algo = _infer_algo(self.path, meta)
         config = EnvConfig() if config is None else config
         self.step_fraction = config.task.max_pressure_step_kpa / config.task.max_pressure_kpa
@@ -662,6 +881,7 @@ class SB3Policy:
         if vn is not None:
             if vn.suffix == ".json":
                 self._norm = NormalizationStats.load(vn)
+                self._norm.check_observation(self.model.observation_space.shape, f"statistics {str(vn)!r}")
             else:  # named explicitly by the caller
                 self._norm = load_pickled_vecnormalize(vn)
 

@@ -13,7 +13,8 @@ indentation over its travel: there a target is a fraction of the travel.
 Every policy here also has ``begin_episode(info)``, called by :func:`agents.evaluate.run_episode` with
 the ``info`` of ``reset``: a blind policy ignores it (the oracle of :mod:`agents.oracle` reads the
 object from it). :func:`load_ramp` reads a ramp saved as JSON by :mod:`agents.search`
-(``agents/best_ramp.json`` is the ``best-ramp`` policy).
+(``agents/best_ramp.json`` is the ``best-ramp`` policy). A saved schedule is defined in kPa (mm for the jaw): its
+fraction is only another way to write it, so changing ``max_pressure_kpa`` never moves it (:func:`ramp_target`).
 """
 
 from __future__ import annotations
@@ -29,7 +30,8 @@ from pneunet_env.config import EnvConfig
 from pneunet_env.files import atomic_write_json
 from pneunet_env.yamlio import load_json_file
 
-__all__ = ["LinearRamp", "StepPolicy", "load_ramp", "save_ramp", "jsonable", "MAX_RAMP_STEPS"]
+__all__ = ["LinearRamp", "StepPolicy", "load_ramp", "ramp_target", "save_ramp", "jsonable", "MAX_RAMP_STEPS",
+           "SCALES"]
 
 MAX_RAMP_STEPS = 10**9
 """The longest ramp, in steps: far beyond any episode (``squeeze_steps`` and ``hold_steps`` are at most 10**6 each),
@@ -177,22 +179,87 @@ def jsonable(x: Any) -> Any:
     raise TypeError(f"cannot write {type(x).__name__} to JSON")
 
 
-def load_ramp(path: str | os.PathLike, config: EnvConfig | None = None) -> LinearRamp | StepPolicy:
-    """The ramp saved by :func:`save_ramp` (``kind`` ``linear_ramp`` or ``step``), for ``config``'s action scale.
+SCALES = {"kPa": ("target_kpa", "max_pressure_kpa"), "mm": ("target_mm", "jaw_travel_mm")}
+"""A schedule file's physical target and the full scale a fraction is of, by unit: the pressure (kPa, of
+``max_pressure_kpa``) or the rigid jaw's closing (mm, of ``jaw_travel_mm``)."""
+
+
+def _physical(data: dict[str, Any], key: str, source: str, *, positive: bool = False) -> float | None:
+    """``data[key]`` as a finite number (``> 0`` if ``positive``, else ``>= 0``), ``None`` if absent; ``ValueError``
+    naming ``source``, the key and the value otherwise."""
+    if key not in data:
+        return None
+    value = data[key]
+    ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value)
+    if not ok or (value <= 0 if positive else value < 0):
+        raise ValueError(f"{source}: {key} must be a finite number {'> 0' if positive else '>= 0'}, got {value!r}")
+    return float(value)
+
+
+def ramp_target(data: dict[str, Any], source: str, full_scale: float, unit: str = "kPa") -> float:
+    """A saved schedule's target, as the fraction of ``full_scale`` that :class:`LinearRamp` and :class:`StepPolicy`
+    take (``full_scale``: the running config's ``max_pressure_kpa``, or the jaw travel in mm).
+
+    **A schedule is defined in physical units**: ``target_kpa`` (``target_mm`` for the jaw, ``unit="mm"``). A fraction,
+    ``target``, is only another way to write it: of the scale the file records (``max_pressure_kpa``,
+    ``jaw_travel_mm``), or, in a file that records neither the physical target nor that scale (:func:`save_ramp`'s
+    form), of ``full_scale``. So a new maximum never moves a tuned schedule (``--set max_pressure_kpa=40`` keeps
+    ``agents/best_ramp.json``'s 33.9 kPa). A file's own target and fraction are returned bit for bit where the scales
+    agree.
 
     Raises:
-        ValueError: the file is missing, not JSON, or does not describe a ramp (named).
+        ValueError: naming ``source``: a key that is not a finite number; a file whose two targets disagree (its
+            ``target`` times its recorded scale is not its physical target: both are named); a physical target above
+            ``full_scale`` (refused, not clipped: clipping would move the schedule).
+        TypeError: ``target`` is not a number (:class:`LinearRamp`'s message).
+    """
+    if unit not in SCALES:
+        raise ValueError(f"unit must be one of {sorted(SCALES)}, got {unit!r}")
+    key, scale_key = SCALES[unit]
+    physical = _physical(data, key, source)
+    scale = _physical(data, scale_key, source, positive=True)
+    fraction = _check_target(data["target"]) if "target" in data else None
+    if physical is None and fraction is None:
+        raise ValueError(f"{source} lacks the key 'target' (or {key!r})")
+    if physical is not None and fraction is not None and scale is not None \
+            and not math.isclose(fraction * scale, physical, rel_tol=1e-9, abs_tol=1e-12):
+        raise ValueError(f"{source}: its two targets disagree: {key} = {physical:g} {unit}, but target = {fraction:g} "
+                         f"of {scale_key} = {scale:g} is {fraction * scale:g} {unit}; give one of them (or make them "
+                         "agree)")
+    if physical is None and (scale is None or scale == full_scale):
+        return fraction  # a fraction of this config's scale, as written
+    if physical is None:
+        physical = fraction * scale
+    if physical > full_scale * (1.0 + 1e-12):
+        what = "max_pressure_kpa" if unit == "kPa" else "the jaw travel"
+        raise ValueError(f"{source}: its target, {physical:g} {unit}, is above {what} = {full_scale:g} {unit}: a "
+                         f"schedule is defined in {unit}, and is not rescaled or clipped to a new maximum; tune one "
+                         f"for this config (pneunet-grasp search), or raise {what}")
+    return min(physical / full_scale, 1.0)
+
+
+def load_ramp(path: str | os.PathLike, config: EnvConfig | None = None, *, full_scale: float | None = None,
+              unit: str = "kPa") -> LinearRamp | StepPolicy:
+    """The ramp saved by :func:`save_ramp` or ``pneunet-grasp search`` (``kind`` ``linear_ramp`` or ``step``), for
+    ``config``'s action scale; its target in physical units (:func:`ramp_target`), as a fraction of ``full_scale``
+    (default: ``config``'s ``max_pressure_kpa``; the jaw travel in mm with ``unit="mm"``).
+
+    Raises:
+        ValueError: the file is missing, not JSON, or does not describe a ramp; its two targets disagree; its target is
+            above ``full_scale`` (all named).
     """
     path = Path(path)
+    config = EnvConfig() if config is None else config
     data = load_json_file(path, "ramp file")  # ValueError naming it: unreadable, not JSON, a duplicate key
     if not isinstance(data, dict):
         raise ValueError(f"ramp file {str(path)!r} must hold a JSON object, got {type(data).__name__}")
     kind = data.get("kind")
-    try:
-        if kind == "linear_ramp":
-            return LinearRamp(data["target"], data["n_steps"], config)
-        if kind == "step":
-            return StepPolicy(data["target"], config)
-    except KeyError as exc:
-        raise ValueError(f"ramp file {str(path)!r} lacks the key {exc.args[0]!r}") from None
-    raise ValueError(f"ramp file {str(path)!r}: unknown kind {kind!r} (expected 'linear_ramp' or 'step')")
+    if kind not in ("linear_ramp", "step"):
+        raise ValueError(f"ramp file {str(path)!r}: unknown kind {kind!r} (expected 'linear_ramp' or 'step')")
+    if kind == "linear_ramp" and "n_steps" not in data:
+        raise ValueError(f"ramp file {str(path)!r} lacks the key 'n_steps'")
+    full = config.task.max_pressure_kpa if full_scale is None else float(full_scale)
+    target = ramp_target(data, f"ramp file {str(path)!r}", full, unit)
+    if kind == "linear_ramp":
+        return LinearRamp(target, data["n_steps"], config)
+    return StepPolicy(target, config)

@@ -221,7 +221,11 @@ def search_ramp(config: EnvConfig | None = None, gripper: str = "pneunet", n_obj
 
 def save_best(best: Candidate, path: Path, config: EnvConfig, gripper: str, n_objects: int, seed: int,
               overrides: dict[str, Any], elapsed: float) -> Path:
-    """Write the found ramp (with its score and how it was found) as JSON."""
+    """Write the found ramp (with its score and how it was found) as JSON.
+
+    The schedule is defined in physical units (:func:`agents.scripted.ramp_target`): ``target_kpa`` and the
+    ``max_pressure_kpa`` its ``target`` is a fraction of (``target_mm`` and ``jaw_travel_mm`` for the jaw), so that a
+    config with another maximum runs the same kPa, and an edit of one target that the other contradicts is refused."""
     from pneunet_env.envs.rigid import default_jaw_travel_mm
 
     meta: dict[str, Any] = {"gripper": gripper}
@@ -229,7 +233,8 @@ def save_best(best: Candidate, path: Path, config: EnvConfig, gripper: str, n_ob
         travel = default_jaw_travel_mm(config)
         meta.update(target_mm=best.target * travel, jaw_travel_mm=travel)
     else:
-        meta.update(target_kpa=best.target * config.task.max_pressure_kpa)
+        meta.update(target_kpa=best.target * config.task.max_pressure_kpa,
+                    max_pressure_kpa=config.task.max_pressure_kpa)
     meta.update(
         search={"objects": n_objects, "seed": seed, "episode_seeds": "seed * 1000003 + i",
                 "objective": "success rate over the env's object distribution; ties: mean return, then the "
@@ -420,7 +425,7 @@ def _given_search_options(args: argparse.Namespace) -> list[str]:
 
 
 def run(args: argparse.Namespace) -> int:
-    from agents.policies import tuned_path
+    from agents.policies import _beside_path, tuned_path
     from pneunet_env.extras import require_extra
 
     if args.sensitivity:
@@ -454,7 +459,10 @@ def run(args: argparse.Namespace) -> int:
           f"objects of {task_description(config)}")
     print(f"  {damage_rule_text(config)}")
     print(f"  {regime_text(config)}")
-    out = args.out or tuned_path(config, args.gripper)
+    # A config file's search lands beside it (DIR/NAME.best_ramp.json, where demo and evaluate look for it), never
+    # over the package's own schedule for the default or the paper's task, which only a search without --config writes.
+    out = args.out or (_beside_path(args.config, args.gripper) if args.config is not None
+                       else tuned_path(config, args.gripper))
     with RunLock(out, file=True, command=f"{PROG} --gripper {args.gripper} --out {out}",
                  force=getattr(args, "force", False)):  # one search writes it at a time; nothing until the end
         try:

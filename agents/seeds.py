@@ -23,8 +23,16 @@ Nothing is lost: the study folder is locked while the study runs (:class:`pneune
 study on it is refused by name, ``--force`` takes the lock over), and so is each seed's folder while it trains
 (:func:`agents.train.train`). Every file is written whole or not at all. Ctrl-C stops the seeds that are training
 (each saves its model as a checkpoint and records ``state: interrupted``), starts no other, and propagates; the
-same command resumes. With ``--jobs``, the workers take Ctrl-C from the terminal (their process group); a SIGINT
-sent to the parent alone lets the seeds already training finish, and starts no other.
+same command resumes.
+
+With ``--jobs``, each seed trains in a worker process watched by the parent (:func:`agents.workers.run_jobs`). A
+worker that dies (the OOM killer's or a pre-emption's SIGKILL) is noticed at once: its seed's ``run.json`` says
+``state: failed`` with the cause and the exit signal, its lock and the temporary files its cut writes left are
+removed (:func:`_mark_died`), no other seed starts, and the seeds training are stopped as Ctrl-C stops them (their
+checkpoints saved): the study needs every seed, so it must be run again anyway, and a stopped seed loses nothing
+while one left training may be the next one killed. The command ends with one line naming each seed's end and
+saying to run it again, which resumes every seed from its newest readable checkpoint. A SIGINT, from the terminal
+or sent to the parent alone, stops every worker once.
 """
 
 from __future__ import annotations
@@ -105,20 +113,108 @@ def _done(run_dir: Path, hp: dict[str, Any]) -> bool:
         return False
 
 
-def _worker_init() -> None:  # a process of the pool: idle, it leaves Ctrl-C to the parent
-    import signal
-
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+def _train_job(job: tuple) -> dict[str, Any]:  # a worker process (agents.workers): module-level, so that it pickles
+    return train_seed(*job)
 
 
-def _train_job(job: tuple) -> dict[str, Any]:  # a process of the pool: module-level, so that it pickles
-    import signal
+def _mark_died(run_dir: Path, seed: int, out) -> bool:
+    """Seed ``seed``'s worker died (``out``: its :class:`agents.workers.Outcome`): its lock is released, the temporary
+    files its cut writes left are removed, and its ``run.json`` says ``state: failed``, with the cause, the exit
+    signal and the timesteps a resume starts from (its newest readable checkpoint's). Returns whether its run had
+    finished before it died (then its record is kept as it is). A worker that died before it made its folder
+    leaves nothing to record."""
+    import time
 
-    signal.signal(signal.SIGINT, signal.default_int_handler)  # training: Ctrl-C saves the seed's run and stops it
-    try:
-        return train_seed(*job)
-    finally:
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
+    from agents.train import _CKPT, latest_checkpoint, write_record
+    from pneunet_env.files import remove_temporary
+    from pneunet_env.locks import RunLock, release_dead
+
+    if not run_dir.is_dir():
+        return False
+    release_dead(run_dir, out.pid)
+    with RunLock(run_dir, command=f"pneunet-grasp train --seeds: recording seed {seed}'s dead worker",
+                 what="seed folder"):
+        remove_temporary(run_dir)
+        record = _record(run_dir) or {}
+        if record.get("state") in ("finished", "stopped"):
+            return True
+        last = latest_checkpoint(run_dir, report=False)
+        steps = int(_CKPT.search(last.name).group(1)) if last is not None else 0
+        cause = out.cause()
+        invocations = record.get("invocations") if isinstance(record.get("invocations"), list) else []
+        invocations.append({"start_timesteps": int(record.get("timesteps") or 0), "end_timesteps": steps,
+                            "wall_s": round(time.monotonic() - out.started, 1) if out.started else None,
+                            "finished": False, "failed": cause, "exit_signal": out.signal_name})
+        record.update(seed=seed, invocations=invocations, state="failed", timesteps=steps, failed=cause,
+                      exit_signal=out.signal_name,
+                      total_wall_s=round(sum(i.get("wall_s") or 0.0 for i in invocations), 1))
+        write_record(run_dir / "run.json", record)
+    return False
+
+
+def _seed_list(seeds: list[int]) -> str:
+    return ("seed " if len(seeds) == 1 else "seeds ") + ", ".join(map(str, seeds))
+
+
+def _train_in_workers(todo: list[int], jobs_of: dict[int, tuple], jobs: int, dirs: dict[int, Path],
+                      n_timesteps: int) -> dict[int, dict[str, Any]]:
+    """Train the seeds ``todo`` in ``jobs`` worker processes (:func:`agents.workers.run_jobs`); their records.
+
+    A worker that dies is noticed at once: its seed's run is marked failed (:func:`_mark_died`), no other seed
+    starts, and the seeds training are stopped as Ctrl-C stops them (each saves its model as a checkpoint), so that
+    the whole study resumes from where it stood with the same command. Raises ``SystemExit`` with one line naming
+    each seed's end and how to resume, or ``KeyboardInterrupt`` (its note says the same) after a Ctrl-C."""
+    from agents.train import latest_checkpoint
+    from agents.workers import run_jobs
+
+    def on_end(out) -> bool:
+        s = todo[out.index]
+        if out.state == "done":
+            _report_seed(s, out.value)
+            return True
+        if out.state == "died":
+            return _mark_died(dirs[s], s, out)
+        return False
+
+    ran = run_jobs(_train_job, [jobs_of[s] for s in todo], min(jobs, len(todo)), on_end=on_end,
+                   preload=("agents.seeds", "agents.train", "stable_baselines3", "torch", "matplotlib"))
+    records = {todo[o.index]: o.value for o in ran.by_state("done")}
+    for o in ran.by_state("died"):
+        if (record := _record(dirs[todo[o.index]])) is not None and record.get("state") in ("finished", "stopped"):
+            records[todo[o.index]] = record  # it died after its run was whole: kept
+    if ran.clean or (not ran.interrupted and len(records) == len(todo)):
+        return records
+    parts = []
+    for o in ran.outcomes:
+        s = todo[o.index]
+        if s in records:
+            continue
+        steps = (_record(dirs[s]) or {}).get("timesteps")
+        at = f" at {steps} timesteps" if isinstance(steps, int) else ""
+        if o.state == "died":
+            parts.append(f"seed {s}: {o.cause()}{at} (its run is marked failed)")
+        elif o.state == "error":
+            exc = o.value
+            parts.append(f"seed {s} failed: {str(exc) or type(exc).__name__}"
+                         if isinstance(exc, (ValueError, TypeError, SystemExit)) else
+                         f"seed {s} failed: {type(exc).__name__}: {exc}")
+        elif o.state == "interrupted":
+            saved = latest_checkpoint(dirs[s], report=False) is not None
+            parts.append(f"seed {s} stopped{at}" + (" with a checkpoint saved" if saved else
+                                                     " before its training began"))
+    waiting = [todo[o.index] for o in ran.by_state("not started")]
+    if waiting:
+        parts.append(f"{_seed_list(waiting)} not started")
+    where = (f"run the same command again to resume every seed from its newest checkpoint (to {n_timesteps} "
+             "timesteps)")
+    if ran.interrupted or (ran.by_state("interrupted") and not ran.by_state("died", "error")):
+        raise KeyboardInterrupt(f"({'; '.join(parts)}): {where}")
+    raise SystemExit(f"pneunet-grasp train: {'; '.join(parts)}: {where}")
+
+
+def _report_seed(seed: int, record: dict[str, Any]) -> None:
+    print(f"seed {seed}: {record['timesteps']} timesteps in {record['total_wall_s']:.0f} s; best evaluation "
+          f"{record['best_eval']}")
 
 
 def _curve(run_dir: Path) -> dict[str, list[float]]:
@@ -240,26 +336,12 @@ def _run_seeds(args: argparse.Namespace, hp: dict[str, Any], run_dir: Path, forc
           f"{jobs} at once) for {hp['n_timesteps']} timesteps each -> {run_dir}/seed-<s>")
     records: dict[int, dict[str, Any]] = {}
     if jobs > 1 and len(todo) > 1:
-        import multiprocessing as mp
-        from concurrent.futures import ProcessPoolExecutor
-
-        pool = ProcessPoolExecutor(max_workers=min(jobs, len(todo)), mp_context=mp.get_context("spawn"),
-                                   initializer=_worker_init)
-        try:
-            for s, record in zip(todo, pool.map(_train_job, [jobs_list[seeds.index(s)] for s in todo]), strict=True):
-                records[s] = record
-                print(f"seed {s}: {record['timesteps']} timesteps in {record['total_wall_s']:.0f} s; best evaluation "
-                      f"{record['best_eval']}")
-        except BaseException:  # Ctrl-C (or a seed's error): no new seed starts; the running ones end as they do
-            pool.shutdown(wait=True, cancel_futures=True)
-            raise
-        pool.shutdown(wait=True)
+        records = _train_in_workers(todo, dict(zip(seeds, jobs_list, strict=True)), jobs, dirs, hp["n_timesteps"])
     for s, job in zip(seeds, jobs_list, strict=True):
         if s not in records:
             records[s] = train_seed(*job)
             if s in todo:
-                print(f"seed {s}: {records[s]['timesteps']} timesteps in {records[s]['total_wall_s']:.0f} s; best "
-                      f"evaluation {records[s]['best_eval']}")
+                _report_seed(s, records[s])
     print(f"scoring every seed's model and its untrained start on {objects} held-out objects ...")
     held_out = score_seeds(hp, dirs, objects)
     result: dict[str, Any] = {

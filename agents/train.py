@@ -12,7 +12,9 @@ again), ``run.json`` (seeds, versions, timesteps, wall time, each invocation), `
 statistics as numbers) and ``.pkl`` (SB3's pickle), ``checkpoints/``, ``final_model.zip`` with
 ``final_model_vecnormalize.json`` and ``.pkl``, and ``training.png`` (success rate and return of each evaluation,
 with matplotlib). ``--resume`` continues from the newest readable checkpoint (one cut short by a hard kill under
-an older version is skipped, and said so on stderr; or ``--resume PATH.zip``) up to ``n_timesteps``.
+an older version is skipped, and said so on stderr; or ``--resume PATH.zip``) up to ``n_timesteps``, with the
+statistics beside it as numbers (``model_vecnormalize_<N>_steps.json``); a pickle is loaded only when named
+(``--resume-vecnormalize PATH.pkl``) or the run's own, in ``--run-dir`` (:func:`agents.train_export.resume_stats`).
 
 Nothing is lost (:func:`train`): every file of the run is written to a temporary name in its folder and renamed
 (the monitor CSVs, logs, excepted); ``run.json`` gives the run's ``state`` (``running``, ``finished``, ``stopped``
@@ -75,7 +77,7 @@ from agents.train_config import (  # noqa: F401  (re-exported: the config's name
     project_config_path,
 )
 from agents.train_envs import batched_available, make_callbacks, make_vec_env, reference_success
-from agents.train_export import export, export_source
+from agents.train_export import export, export_source, resume_stats
 from pneunet_env.arguments import count, integer, output_dir, output_file, real
 from pneunet_env.arguments import seed as seed_type
 from pneunet_env.files import atomic_write_json, atomic_write_many, atomic_write_text, deferred_interrupt
@@ -135,14 +137,16 @@ def no_folder_logger():
 
 def _save_checkpoint(model, folder: Path) -> Path:
     """``folder/model_<N>_steps.zip`` (``N``: the model's timesteps) and, for a ``VecNormalize`` run,
-    ``folder/model_vecnormalize_<N>_steps.pkl`` (SB3's CheckpointCallback's names), the statistics first, each file
-    written whole (:func:`pneunet_env.files.atomic_write_bytes`)."""
+    ``folder/model_vecnormalize_<N>_steps.json`` (the statistics as numbers, what ``--resume`` reads) and ``.pkl``
+    (SB3's CheckpointCallback's names), the statistics first, each file written whole
+    (:func:`pneunet_env.files.atomic_write_bytes`)."""
     n = int(model.num_timesteps)
     vn = model.get_vec_normalize_env()
     stats = None if vn is None else pickle.dumps(vn)
     data = _model_bytes(model)
-    with deferred_interrupt():  # both files, or a Ctrl-C before either: raised after them
+    with deferred_interrupt():  # every file, or a Ctrl-C before any: raised after them
         if stats is not None:
+            NormalizationStats.from_vecnormalize(vn).save(folder / f"model_vecnormalize_{n}_steps.json")
             atomic_write_bytes(folder / f"model_vecnormalize_{n}_steps.pkl", stats)
         return atomic_write_bytes(folder / f"model_{n}_steps.zip", data)
 
@@ -180,15 +184,6 @@ def latest_checkpoint(run_dir: Path, *, report: bool = True) -> Path | None:
     return None
 
 
-def _checkpoint_stats(ckpt: Path) -> Path | None:
-    m = _CKPT.search(ckpt.name)
-    cand = ckpt.with_name(f"model_vecnormalize_{m.group(1)}_steps.pkl") if m else None
-    if cand is not None and cand.is_file():
-        return cand
-    alt = ckpt.with_name(ckpt.stem + "_vecnormalize.pkl")
-    return alt if alt.is_file() else None
-
-
 def _versions() -> dict[str, str]:
     import gymnasium
     import numpy
@@ -203,7 +198,8 @@ def _versions() -> dict[str, str]:
 
 
 def train(hp: dict[str, Any], run_dir: Path, resume: Path | None = None, progress: bool = True,
-          config_path: str | None = None, *, command: str | None = None, force: bool = False) -> dict[str, Any]:
+          config_path: str | None = None, *, command: str | None = None, force: bool = False,
+          resume_vecnormalize: Path | None = None) -> dict[str, Any]:
     """Train (or resume) one run; returns the run record written to ``run_dir/run.json``.
 
     Nothing is lost, and the folder has one writer:
@@ -224,6 +220,9 @@ def train(hp: dict[str, Any], run_dir: Path, resume: Path | None = None, progres
     Args:
         resume: a checkpoint (or final model) of this run to continue from; its ``run.json`` is read first, and an
             unreadable one is a ``ValueError`` naming it (restore it, or move it aside to start a new record).
+        resume_vecnormalize: the statistics to resume a normalised run with (``--resume-vecnormalize``: a ``.json``,
+            or a pickle, loaded because it is named); default: those beside ``resume``, never an unnamed pickle
+            outside ``run_dir`` (:func:`agents.train_export.resume_stats`).
         command: the command line, recorded in ``run.json`` and the lock file.
         force: take over the run folder's lock even if its holder looks alive.
     """
@@ -235,8 +234,11 @@ def train(hp: dict[str, Any], run_dir: Path, resume: Path | None = None, progres
 
     record_path = run_dir / "run.json"
     record = _read_record(record_path) if resume is not None else {}
+    stats = None
     if resume is not None:
         check_model_zip(resume)
+        if hp["normalize"]:  # named before the work starts: no unnamed pickle, no fresh statistics for a trained model
+            stats = resume_stats(resume, run_dir, resume_vecnormalize)
     created = not run_dir.exists()
     lock = RunLock(run_dir, command=command or f"pneunet-grasp train --run-dir {run_dir}", force=force)
     t0 = time.monotonic()
@@ -252,13 +254,9 @@ def train(hp: dict[str, Any], run_dir: Path, resume: Path | None = None, progres
         venv = make_vec_env(hp, hp["n_envs"], seed, run_dir / "monitor")
         eval_env = make_vec_env(hp, hp["n_eval_envs"], seed + 10_000, None)
         norm = hp["normalize"]
-        stats = None
-        if resume is not None:
-            stats = _checkpoint_stats(resume)  # SB3's pickle, in the run's own checkpoints (as trusted as the model)
         if norm:
             if stats is not None:
-                venv = VecNormalize.load(str(stats), venv)
-                venv.training = True
+                venv = stats.to_vecnormalize(venv, training=True, source=f"the statistics of {resume}")
             else:
                 venv = VecNormalize(venv, gamma=float(hp.get("gamma", 0.99)), **norm)
             eval_env = VecNormalize(eval_env, training=False, norm_obs=norm.get("norm_obs", True), norm_reward=False)
@@ -432,6 +430,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--run-dir", type=output_dir, default=None, help="output directory (default runs/<algo>)")
     parser.add_argument("--resume", nargs="?", const="latest", default=None, metavar="CHECKPOINT",
                         help="resume from CHECKPOINT.zip, or (no value) from the newest checkpoint of --run-dir")
+    parser.add_argument("--resume-vecnormalize", type=Path, default=None, metavar="PATH",
+                        help="with --resume: the normalisation statistics to go on with (.json, or a .pkl: a pickle "
+                             "runs code, and is loaded only when named here); default: the JSON beside the checkpoint")
     parser.add_argument("--timesteps", type=real(1, 1e12), default=None, help="override n_timesteps")
     parser.add_argument("--n-envs", type=integer(1, 65536, "--n-envs"), default=None, help="override n_envs")
     parser.add_argument("--seed", type=seed_type, default=None, help="override seed")
@@ -478,10 +479,16 @@ def _command(args: argparse.Namespace, run_dir: Path) -> str:
     parts += [f"--set {item}" for item in getattr(args, "overrides", [])]
     if args.resume is not None:
         parts.append("--resume" if args.resume == "latest" else f"--resume {args.resume}")
+    if getattr(args, "resume_vecnormalize", None) is not None:
+        parts.append(f"--resume-vecnormalize {args.resume_vecnormalize}")
     return " ".join(parts)
 
 
 def run(args: argparse.Namespace) -> int:
+    from pneunet_env.extras import require_extra
+
+    for module in ("torch", "stable_baselines3"):  # one line naming the extra, before the config is read
+        require_extra("train", module, "rl", "training (stable-baselines3 on torch)")
     try:
         from agents.resources import resolve_config
 
@@ -511,6 +518,8 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as exc:
         raise SystemExit(f"pneunet-grasp train: {exc}") from None
     run_dir = args.run_dir or Path("runs") / hp["algo"]
+    if (named := getattr(args, "resume_vecnormalize", None)) is not None and args.resume is None:
+        raise SystemExit(f"pneunet-grasp train: --resume-vecnormalize {named} needs --resume")
     if args.seeds is not None:
         from agents.seeds import run_seeds
 
@@ -520,11 +529,13 @@ def run(args: argparse.Namespace) -> int:
         resume = latest_checkpoint(run_dir) if args.resume == "latest" else Path(args.resume)
         if resume is None or not resume.is_file():
             raise SystemExit(f"pneunet-grasp train: no checkpoint to resume from ({args.resume} in {run_dir})")
+    if named is not None and not named.is_file():
+        raise SystemExit(f"pneunet-grasp train: --resume-vecnormalize {named}: no such file")
     print(f"training {hp['algo'].upper()} on {ENV_ID} ({hp['vec_env']} vec env, {hp['n_envs']} envs) for "
           f"{hp['n_timesteps']} timesteps, at most {hp['max_train_minutes']:g} min; seed {hp['seed']}; -> {run_dir}"
           + (f"; resuming from {resume}" if resume else ""))
     record = train(hp, run_dir, resume, progress=not args.no_progress, config_path=str(args.config),
-                   command=_command(args, run_dir), force=getattr(args, "force", False))
+                   command=_command(args, run_dir), force=getattr(args, "force", False), resume_vecnormalize=named)
     inv = record["invocations"][-1]
     print(f"{inv['end_timesteps']} timesteps ({inv['end_timesteps'] - inv['start_timesteps']} this run) in "
           f"{inv['wall_s']:.0f} s; best evaluation: {record['best_eval']}")

@@ -19,7 +19,7 @@ from typing import Any
 from agents.train_config import ENV_ID, _wrapper_classes
 from pneunet_env.files import atomic_write_bytes, deferred_interrupt
 
-__all__ = ["batched_available", "make_vec_env", "make_callbacks", "reference_success"]
+__all__ = ["batched_available", "make_vec_env", "make_callbacks", "evaluation_verdict", "reference_success"]
 
 
 # ---------------------------------------------------------------------------------------------
@@ -133,7 +133,15 @@ def make_callbacks(hp: dict[str, Any], run_dir: Path, eval_env, seed: int, deadl
         """EvalCallback on the same objects every time (the eval env is re-seeded before each evaluation).
 
         On a resumed run it starts from the earlier evaluations (``evaluations.npz`` keeps them all, and a new best
-        model must beat the earlier best)."""
+        model must beat the earlier best).
+
+        Its log (``verbose``) is SB3's three lines per evaluation (mean return, episode length, success rate), then
+        this project's line on the best model (:func:`evaluation_verdict`) instead of SB3's "New best mean reward!":
+        step 0, the untrained policy, is never the best model, so SB3 would call the first trained evaluation a new
+        best even below step 0's return."""
+
+        untrained_mean_reward: float | None = None
+        """Step 0's mean return (the untrained policy), once evaluated (or read back on a resumed run)."""
 
         def _init_callback(self) -> None:
             super()._init_callback()
@@ -148,10 +156,11 @@ def make_callbacks(hp: dict[str, Any], run_dir: Path, eval_env, seed: int, deadl
                 self.evaluations_length = [list(data["ep_lengths"][i]) for i in keep]
                 if "successes" in data:
                     self.evaluations_successes = [list(data["successes"][i]) for i in keep]
-                pairs = zip(self.evaluations_timesteps, self.evaluations_results, strict=True)
+                pairs = list(zip(self.evaluations_timesteps, self.evaluations_results, strict=True))
                 trained = [r for t, r in pairs if t > 0]
                 if trained:  # step 0, the untrained start, is never the best model
                     self.best_mean_reward = float(max(np.mean(r) for r in trained))
+                self.untrained_mean_reward = next((float(np.mean(r)) for t, r in pairs if t == 0), None)
 
         def _on_training_start(self) -> None:
             """A new run is evaluated before its first update too: step 0, the untrained policy, the learning curve's
@@ -172,15 +181,42 @@ def make_callbacks(hp: dict[str, Any], run_dir: Path, eval_env, seed: int, deadl
                     self.best_mean_reward = -float("inf")
 
         def _on_step(self) -> bool:
-            if self.eval_freq > 0 and self.n_calls % self.eval_freq == 0:
+            evaluating = self.eval_freq > 0 and self.n_calls % self.eval_freq == 0
+            if evaluating:
                 self.eval_env.seed(seed)
             # EvalCallback's np.savez goes into memory, then to evaluations.npz whole (never a cut file)
             self.log_path = io.BytesIO()
-            go_on = super()._on_step()
+            best_before, verbose = self.best_mean_reward, self.verbose
+            self.verbose = 0  # SB3's own lines: printed below, with this project's line on the best model
+            try:
+                go_on = super()._on_step()
+            finally:
+                self.verbose = verbose
             if data := self.log_path.getvalue():
                 with deferred_interrupt():
                     atomic_write_bytes(run_dir / "evaluations.npz", data)
+            if evaluating:
+                self._report(best_before)
             return go_on
+
+        def _report(self, best_before: float) -> None:
+            """Print the evaluation just made (SB3's lines, then :func:`evaluation_verdict`'s); note step 0's return."""
+            import numpy as np
+
+            rewards, lengths = self.evaluations_results[-1], self.evaluations_length[-1]
+            mean = float(np.mean(rewards))
+            if self.num_timesteps == 0:
+                self.untrained_mean_reward = mean
+            if self.verbose < 1:
+                return
+            print(f"Eval num_timesteps={self.num_timesteps}, episode_reward={mean:.2f} +/- {np.std(rewards):.2f}")
+            print(f"Episode length: {np.mean(lengths):.2f} +/- {np.std(lengths):.2f}")
+            if self._is_success_buffer:
+                print(f"Success rate: {100 * np.mean(self._is_success_buffer):.2f}%")
+            verdict = evaluation_verdict(self.num_timesteps, mean, new_best=self.best_mean_reward > best_before,
+                                         untrained=self.untrained_mean_reward)
+            if verdict:
+                print(verdict)
 
     class WallClock(BaseCallback):
         """Stop training once the invocation's time budget is spent."""
@@ -202,6 +238,30 @@ def make_callbacks(hp: dict[str, Any], run_dir: Path, eval_env, seed: int, deadl
     # the config's own callbacks (rl-zoo3's `callback` key), after ours
     extra = [cls(**kwargs) for cls, kwargs in _wrapper_classes(hp, "callback")]
     return [evaluation, checkpoints, WallClock(verbose=1), *extra]
+
+
+def evaluation_verdict(timesteps: int, mean_reward: float, *, new_best: bool, untrained: float | None) -> str:
+    """The training log's line on an evaluation's standing ("" when there is nothing to say).
+
+    Step 0 (the untrained policy) is evaluated for the learning curve but never kept as the best model: what a run
+    exports is trained. So the first trained evaluation is the first best model even when its mean return is below
+    step 0's, and the line says so (SB3's EvalCallback prints "New best mean reward!" there, with no comparison).
+
+    Args:
+        timesteps: the model's timesteps at the evaluation.
+        mean_reward: its mean episode return.
+        new_best: whether it became the run's best model (``best_model.zip``).
+        untrained: step 0's mean return, if it was evaluated.
+    """
+    if timesteps == 0:
+        return "Step 0 (the untrained policy): evaluated for the learning curve, never kept as the best model"
+    if not new_best:
+        return ""
+    line = f"New best trained model (mean reward {mean_reward:.2f}): saved as best_model.zip"
+    if untrained is not None and mean_reward < untrained:
+        line += (f"; below step 0's {untrained:.2f}, but step 0 (the untrained policy) is never kept as the best "
+                 "model")
+    return line
 
 
 def reference_success(hp: dict[str, Any], seed: int, spec: str = "best-ramp") -> float | None:

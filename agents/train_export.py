@@ -1,11 +1,15 @@
 """``pneunet-grasp train --export PATH_STEM``: a run's best model (else its final one), its statistics and a metadata
 JSON copied out of the run folder (:func:`export`), each file replaced atomically, so a failure leaves the previous
 export whole. The policy registry (:mod:`agents.policies`) then loads ``PATH_STEM.zip`` by path.
+
+The statistics a ``--resume`` goes on with (:func:`resume_stats`) are numbers too: no pickle is loaded unless its path
+is named (``--resume-vecnormalize PATH``), or it is the run's own, in the ``--run-dir`` it resumes.
 """
 
 from __future__ import annotations
 
 import json
+import re
 from pathlib import Path
 from typing import Any
 
@@ -13,7 +17,7 @@ from agents.policies import STATS_SUFFIX, NormalizationStats, load_pickled_vecno
 from agents.train_config import action_mode
 from pneunet_env.files import atomic_write_many, deferred_interrupt
 
-__all__ = ["export", "export_source"]
+__all__ = ["export", "export_source", "resume_stats"]
 
 
 def export(run_dir: Path, dest: Path, record: dict[str, Any]) -> Path:
@@ -62,6 +66,57 @@ def _run_stats(stem: Path) -> NormalizationStats | None:
     if pkl.is_file():
         return NormalizationStats.from_vecnormalize(load_pickled_vecnormalize(pkl))
     return None
+
+
+def _stats_beside(checkpoint: Path, suffix: str) -> Path | None:
+    """The statistics file beside a model of a run, by SB3's names: ``model_vecnormalize_<N>_steps<suffix>`` for the
+    checkpoint ``model_<N>_steps.zip``, ``STEM_vecnormalize<suffix>`` for ``STEM.zip``; ``None`` where neither
+    exists."""
+    m = re.fullmatch(r"model_(\d+)_steps\.zip", checkpoint.name)
+    names = [f"model_vecnormalize_{m.group(1)}_steps{suffix}"] if m else []
+    names.append(f"{checkpoint.stem}_vecnormalize{suffix}")
+    return next((p for p in (checkpoint.with_name(n) for n in names) if p.is_file()), None)
+
+
+def _inside(path: Path, run_dir: Path) -> bool:
+    """Whether ``path`` is a model of the run ``run_dir``: in the folder itself or in its ``checkpoints/``."""
+    return path.resolve().parent in (run_dir.resolve(), (run_dir / "checkpoints").resolve())
+
+
+def resume_stats(checkpoint: str | Path, run_dir: str | Path,
+                 named: str | Path | None = None) -> NormalizationStats:
+    """The normalisation statistics a run trained on a ``VecNormalize`` goes on with from ``checkpoint``.
+
+    In order: ``named`` (``--resume-vecnormalize PATH``: a ``.json`` read as numbers, any other file unpickled, which
+    runs code from it: the user named it); the JSON beside the checkpoint (``model_vecnormalize_<N>_steps.json``,
+    ``STEM_vecnormalize.json``: numbers, no code runs); the pickle beside it (SB3's names, ``.pkl``) only where the
+    checkpoint is the run's own, in ``run_dir`` or its ``checkpoints/`` (written by a version before checkpoints carried
+    JSON; the user named that folder, whose model zip SB3 unpickles as well). A pickle beside a checkpoint anywhere
+    else is never loaded: it is a file the user did not name.
+
+    Raises:
+        ValueError: naming the files: the pickle beside a checkpoint outside ``run_dir`` (and the option that loads it),
+            no statistics at all (a model trained on normalised observations would go on with fresh ones), or
+            statistics that cannot be read.
+    """
+    checkpoint, run_dir = Path(checkpoint), Path(run_dir)
+    if named is not None:
+        named = Path(named)
+        if named.suffix == ".json":
+            return NormalizationStats.load(named)
+        return NormalizationStats.from_vecnormalize(load_pickled_vecnormalize(named))  # named: trusted by the user
+    if (js := _stats_beside(checkpoint, ".json")) is not None:
+        return NormalizationStats.load(js)
+    pkl = _stats_beside(checkpoint, ".pkl")
+    if pkl is not None and _inside(checkpoint, run_dir):
+        return NormalizationStats.from_vecnormalize(load_pickled_vecnormalize(pkl))
+    if pkl is not None:
+        raise ValueError(f"the statistics beside {str(checkpoint)!r} are only a pickle, {str(pkl)!r}, outside the run "
+                         f"folder {str(run_dir)!r}: a pickle runs code when loaded and is never loaded unless named; "
+                         f"if you trust it, pass --resume-vecnormalize {pkl}")
+    raise ValueError(f"no normalisation statistics beside {str(checkpoint)!r} (looked for its _vecnormalize.json and "
+                     f".pkl); the run normalises its observations, and its model would go on with fresh statistics: "
+                     "name them with --resume-vecnormalize PATH (.json, or a .pkl you trust)")
 
 
 def export_source(run_dir: Path) -> str:

@@ -1,5 +1,8 @@
 """pneunet_env: a soft pneumatic (pneu-net) grasping environment with a quasi-static energy-minimising step."""
 
+import pneunet_env._start  # noqa: F401  (first: a Ctrl-C while pneunet-grasp imports ends in its one line, 130)
+
+# isort: split
 import gymnasium as _gym
 
 from pneunet_env.config import EnvConfig, load_config
@@ -7,7 +10,7 @@ from pneunet_env.envs.grasp import PneuNetGraspEnv
 from pneunet_env.physics.params import ActuatorParams
 from pneunet_env.physics.solver import Equilibrium, LoadPath, SolverOptions, load_path, solve_equilibrium
 
-__version__ = "0.12.0"
+__version__ = "0.13.0"
 
 __all__ = [
     "ActuatorParams",

@@ -13,19 +13,27 @@ The commands of ``pneunet_env``, ``pneunet_env.bench``, ``pneunet_env.paper`` an
   a place this process can write) and :func:`output_file` (a file that can be written there; an existing file is
   replaced atomically, through :mod:`pneunet_env.files`, as the command's docs say; a folder or a device is
   refused). Their ``check_*`` twins check a path that did not come through argparse (a default computed later).
+  A path too long for the file system is refused by both (``ENAMETOOLONG`` would come only at the first write).
+* Inputs: :func:`check_input_path` (``--config``): a FIFO, a device, a folder or a too-long path is refused before
+  anything opens it (:func:`pneunet_env.yamlio.check_input_file`, which every YAML and JSON file read goes through).
+* Errors of the file system: :func:`os_error_line`, the command line's one line for a full disk, a quota, a
+  read-only file system, a too-long path.
 """
 
 from __future__ import annotations
 
 import argparse
+import errno
 import math
 import os
 import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
-__all__ = ["MAX_COUNT", "MAX_SEED", "check_output_dir", "check_output_file", "count", "integer", "non_negative",
-           "output_dir", "output_file", "positive", "real", "seed"]
+from pneunet_env.yamlio import check_input_file, path_too_long, short_repr
+
+__all__ = ["MAX_COUNT", "MAX_SEED", "check_input_path", "check_output_dir", "check_output_file", "count", "integer",
+           "non_negative", "os_error_line", "output_dir", "output_file", "positive", "real", "seed"]
 
 MAX_COUNT = 1_000_000
 """The largest count an option takes by default (objects, episodes, steps): more would run for days or exhaust
@@ -131,11 +139,15 @@ def check_output_dir(path: str | os.PathLike, option: str = "--out") -> Path:
 
 
 def _named_path(path, option: str) -> tuple[Path, str, str]:
-    """``(path, its text, how a message names it)``; an empty path refused."""
+    """``(path, its text, how a message names it)``; an empty path, or one too long for the file system
+    (:func:`pneunet_env.yamlio.path_too_long`), refused."""
     text = os.fspath(path)
-    shown = f"{option} {text!r}" if option else repr(text)
+    shown = f"{option} {short_repr(text)}" if option else short_repr(text)
     if not str(text).strip():
         raise argparse.ArgumentTypeError(f"{shown}: an empty path")
+    why = path_too_long(text)
+    if why is not None:
+        raise argparse.ArgumentTypeError(f"{shown}: the path is too long ({why})")
     return Path(text), str(text), shown
 
 
@@ -179,6 +191,34 @@ def _output_file(path, option: str) -> Path:
         raise argparse.ArgumentTypeError(f"{shown} exists and is not a regular file")
     _creatable_under(_nearest_existing(p.parent), shown)
     return p
+
+
+def check_input_path(path: str | os.PathLike, option: str = "--config") -> None:
+    """``path`` as an input file, before anything opens it (:func:`pneunet_env.yamlio.check_input_file`): a path too
+    long for the file system, or one that exists and is a folder, a FIFO (its opening would wait for a writer for
+    ever) or a device, is refused with a ``ValueError`` naming ``option``; a missing one passes (the caller may find
+    it by another name, or say it is missing)."""
+    check_input_file(path, f"{option} {short_repr(os.fspath(path))}")
+
+
+_WRITE_ERRORS = {errno.ENOSPC: "no space left on the device", errno.EROFS: "a read-only file system",
+                 errno.ENAMETOOLONG: "the path is too long for the file system"}
+if hasattr(errno, "EDQUOT"):  # (not on Windows)
+    _WRITE_ERRORS[errno.EDQUOT] = "the disk quota is exceeded"
+
+
+def os_error_line(exc: OSError) -> str | None:
+    """The one line that names an :class:`OSError` the user can act on, with its path, as the command line prints
+    it: ``no space left on the device writing '/runs/a/run.json'`` (``ENOSPC``; ``EDQUOT``, ``EROFS`` alike), ``the
+    path is too long for the file system: '/tmp/aaaa...' (5,005 characters)`` (``ENAMETOOLONG``); ``None`` for
+    any other error (a bug, shown as such)."""
+    what = _WRITE_ERRORS.get(getattr(exc, "errno", None))
+    if what is None:
+        return None
+    name = exc.filename if exc.filename is not None else exc.filename2
+    if exc.errno == errno.ENAMETOOLONG:
+        return what + ("" if name is None else f": {short_repr(os.fsdecode(name))}")
+    return what + (" (writing)" if name is None else f" writing {short_repr(os.fsdecode(name))}")
 
 
 def output_dir(text: str) -> Path:

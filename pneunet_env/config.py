@@ -35,7 +35,7 @@ import math
 import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from functools import cached_property
+from functools import cached_property, wraps
 from pathlib import Path
 from typing import Any
 
@@ -80,10 +80,17 @@ class ConfigTypeError(TypeError, ValueError):
 
 def check_bool(name: str, value: Any) -> bool:
     """``value`` if it is a boolean (Python's or numpy's), as ``bool``; else :class:`ConfigTypeError` naming ``name``
-    (a string such as ``"no"`` or ``"false"`` is refused, never read as true)."""
+    and ``value`` (a string such as ``"no"``, ``"yes"`` or ``"false"``, and ``1`` or ``0``, are refused, never read as
+    a boolean).
+
+    The one rule for a boolean key, wherever it is typed: ``true`` or ``false`` in a YAML file and in ``--set``
+    (:mod:`pneunet_env.yamlio` refuses YAML 1.1's ``yes``/``no``/``on``/``off`` there), ``True`` or ``False`` as a
+    keyword argument."""
     if type(value).__name__ in ("bool", "bool_"):
         return bool(value)
-    raise ConfigTypeError(f"config key {name!r} must be true or false, got {value!r}")
+    kind = {str: "a string", int: "an integer", float: "a number", type(None): "null"}.get(type(value),
+                                                                                      type(value).__name__)
+    raise ConfigTypeError(f"config key {name!r} must be true or false, got {value!r} ({kind}): write true or false")
 
 
 def check_class_weights(name: str, value: Any) -> dict[str, float]:
@@ -310,12 +317,35 @@ FLAT_KEYS = _section_fields()
 
 
 def flat_key(key: str) -> tuple[str, str]:
-    """``(section, field)`` of a flat config key; ``ValueError`` naming an unknown one."""
+    """``(section, field)`` of a flat config key; ``ValueError`` naming an unknown one, with the closest valid keys
+    (``did you mean 'max_pressure_kpa'?``), or, where none is close, every valid key."""
     try:
         return FLAT_KEYS[key]
     except (KeyError, TypeError):
+        close = closest_keys(key)
+        if close:
+            where = "; ".join(f"{k!r} (section {FLAT_KEYS[k][0]!r})" for k in close)
+            raise ValueError(f"unknown config key {key!r}; did you mean {where}?") from None
         valid = ", ".join(f"{s}.{f.name}" for s, c in SECTIONS.items() for f in dataclasses.fields(c))
         raise ValueError(f"unknown config key {key!r}; valid keys: {valid}") from None
+
+
+def closest_keys(key: Any, n: int = 3) -> list[str]:
+    """The valid flat keys closest to the unknown ``key`` (:func:`difflib.get_close_matches`, best first; at most
+    ``n``): a misspelling (``max_presure_kpa``), another case (``Observe_Volume``) or a dotted path
+    (``task.max_pressure_kpa``, ``render.width``) finds its key. ``[]`` where none is close."""
+    import difflib
+
+    if not isinstance(key, str):
+        return []
+    fields = [k for k, (_, f) in FLAT_KEYS.items() if k == f]  # the field names; SECTION_FIELD only where it is close
+    text = key.strip().lower()
+    dotted = text.replace(".", "_")
+    exact = [k for k in (text, dotted, text.rpartition(".")[2]) if k in FLAT_KEYS]
+    if exact:
+        return [FLAT_KEYS[exact[0]][1]]
+    close = difflib.get_close_matches(text, fields, n=n, cutoff=0.75)
+    return close or difflib.get_close_matches(dotted, list(FLAT_KEYS), n=n, cutoff=0.75)
 
 
 @dataclass(frozen=True)
@@ -524,6 +554,25 @@ def _nested(values: Mapping[str, Any], into: dict[str, dict[str, Any]]) -> None:
             into[section][fname] = value
 
 
+def _values_cut(build):
+    """``build``, whose errors show over-long values cut (:func:`pneunet_env.yamlio.cut_message`: a 200 kB
+    ``use_case`` is named by its start and its length, not echoed whole); the error itself is unchanged."""
+
+    @wraps(build)
+    def checked(*args: Any, **kwargs: Any):
+        try:
+            return build(*args, **kwargs)
+        except (ValueError, TypeError) as exc:
+            from pneunet_env.yamlio import cut_message
+
+            if len(exc.args) == 1 and isinstance(exc.args[0], str) and (cut := cut_message(exc.args[0])) != exc.args[0]:
+                exc.args = (cut,)
+            raise
+
+    return checked
+
+
+@_values_cut
 def load_config(config: EnvConfig | Mapping[str, Any] | str | os.PathLike | None = None, **overrides: Any) -> EnvConfig:
     """Build an :class:`EnvConfig` from defaults, then ``config``, then ``overrides``.
 

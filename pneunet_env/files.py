@@ -18,8 +18,19 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-__all__ = ["atomic_write_bytes", "atomic_write_json", "atomic_write_many", "atomic_write_text", "deferred_interrupt",
-           "save_figure", "stage_file"]
+__all__ = ["atomic_write_bytes", "atomic_write_json", "atomic_write_many", "atomic_write_text",
+           "command_line_interrupts", "deferred_interrupt", "interrupt_once", "remove_temporary", "save_figure",
+           "stage_file"]
+
+
+def interrupt_once(signum: int, frame: Any) -> None:
+    """A SIGINT handler that raises ``KeyboardInterrupt`` the first time and ignores SIGINT from then on.
+
+    For a worker process that may be told to stop twice (the terminal's Ctrl-C reaches its process group, and its
+    parent forwards the one it got): the second must not cut the checkpoint the first is saving.
+    :func:`deferred_interrupt` holds it as it holds Python's own handler."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    raise KeyboardInterrupt
 
 
 @contextlib.contextmanager
@@ -29,10 +40,12 @@ def deferred_interrupt() -> Iterator[None]:
     For a few lines that must run whole: a file written to a temporary name and renamed into place (between the
     temporary file's creation and the ``try`` that removes it on failure, an interrupt would leave it behind), a lock
     file created or removed. Only in the main thread under Python's default SIGINT handler (where Ctrl-C raises
-    ``KeyboardInterrupt``); nested, the outermost block holds it; elsewhere the block runs as it is.
+    ``KeyboardInterrupt``) or :func:`interrupt_once`; nested, the outermost block holds it; elsewhere the block runs
+    as it is.
     """
+    handler = signal.getsignal(signal.SIGINT)
     if (threading.current_thread() is not threading.main_thread()
-            or signal.getsignal(signal.SIGINT) is not signal.default_int_handler):
+            or handler not in (signal.default_int_handler, interrupt_once)):
         yield
         return
     caught: list[int] = []
@@ -40,9 +53,67 @@ def deferred_interrupt() -> Iterator[None]:
     try:
         yield
     finally:
-        signal.signal(signal.SIGINT, signal.default_int_handler)
+        signal.signal(signal.SIGINT, handler)
         if caught:
+            if handler is interrupt_once:
+                signal.signal(signal.SIGINT, signal.SIG_IGN)  # its one interrupt is spent
             raise KeyboardInterrupt
+
+
+_PROG = "pneunet-grasp"
+"""The command line's name (as :data:`pneunet_env.extras.PROG`, which this module, imported first, cannot import)."""
+
+
+def _is_command_line() -> bool:
+    """Whether this process runs the command line: the ``pneunet-grasp`` script, or ``python -m pneunet_env.cli``."""
+    import sys
+
+    script = os.path.basename(sys.argv[0]) if sys.argv else ""
+    if script.removesuffix(".exe").removesuffix("-script.py") == _PROG:
+        return True
+    argv = list(getattr(sys, "orig_argv", []))
+    return any(a == "-m" and b in ("pneunet_env.cli", "pneunet_env.cli.__main__")
+               for a, b in zip(argv, argv[1:], strict=False))
+
+
+def command_line_interrupts() -> None:
+    """In the command line's process, a Ctrl-C that no command handles ends in the command's one line,
+    ``pneunet-grasp CMD: interrupted``, and exit status 130, as one inside the command does: one that comes while the
+    package and the command's module are imported (start-up: half a second or more), before the command's own
+    handling begins. Call it first thing in the package's ``__init__``; elsewhere (a library import, a test) it does
+    nothing. Set ``PNEUNET_DEBUG=1`` for Python's traceback instead.
+
+    A ``KeyboardInterrupt`` that a C callback could not raise (numba's compiler calls back into Python; Python
+    prints it as "Exception ignored ...") is not printed but raised again (a SIGINT sent to this process), once the
+    callback has returned; an error the callback's caller raises meanwhile is the command's interrupt all the same
+    (the command line's ``main`` sees that a SIGINT came)."""
+    import sys
+
+    if not _is_command_line() or os.environ.get("PNEUNET_DEBUG", "").strip().lower() not in ("", "0", "false", "no",
+                                                                                             "off"):
+        return
+    previous_hook, previous_unraisable = sys.excepthook, sys.unraisablehook
+
+    def excepthook(kind, value, tb) -> None:
+        if not issubclass(kind, KeyboardInterrupt):
+            previous_hook(kind, value, tb)
+            return
+        words = [a for a in sys.argv[1:3] if a[:1].isalpha()]
+        name = " ".join(words[:2] if words[:1] == ["bench"] else words[:1])
+        try:
+            sys.stdout.flush()
+        except (OSError, ValueError):
+            pass
+        print(f"{_PROG}{' ' + name if name else ''}: interrupted", file=sys.stderr, flush=True)
+        os._exit(130)  # 128 + SIGINT, as the command's own interrupt (no interpreter clean-up: nothing has begun)
+
+    def unraisablehook(unraisable) -> None:
+        if not isinstance(unraisable.exc_value, KeyboardInterrupt):
+            previous_unraisable(unraisable)
+        elif signal.getsignal(signal.SIGINT) is signal.default_int_handler:
+            os.kill(os.getpid(), signal.SIGINT)  # the interrupt the callback swallowed, raised where it can be
+
+    sys.excepthook, sys.unraisablehook = excepthook, unraisablehook
 
 
 def _umask() -> int:
@@ -71,10 +142,37 @@ def stage_file(final: str | Path, content: bytes | Path, suffix: str = ".tmp") -
             out.flush()
             os.fsync(out.fileno())
         os.chmod(tmp, final.stat().st_mode & 0o7777 if final.exists() else 0o666 & ~_umask())
-    except BaseException:
+    except BaseException as exc:
         tmp.unlink(missing_ok=True)
+        _name_the_file(exc, final)
         raise
     return tmp
+
+
+def _name_the_file(exc: BaseException, path: Path) -> None:
+    """An ``OSError`` of a write that does not name its file (a full disk's ``ENOSPC`` from ``write`` or ``fsync``)
+    names ``path``, the file being written: the command line's one line says which (``no space left on the device
+    writing PATH``)."""
+    if isinstance(exc, OSError) and exc.filename is None and exc.errno is not None:  # not a bare OSError("text")
+        exc.filename = str(path)
+
+
+def _is_temporary(name: str) -> bool:
+    """Whether ``name`` is one of this module's temporary files (``.NAME.XXXX.tmp``, a figure's
+    ``.STEM.XXXX.tmp.png``)."""
+    return name.startswith(".") and (name.endswith(".tmp") or ".tmp." in name)
+
+
+def remove_temporary(folder: str | Path) -> list[Path]:
+    """Remove the temporary files a hard-killed writer left in ``folder`` and its sub-folders (what
+    :func:`stage_file` and :func:`save_figure` stage before renaming); returns them. Only for a folder whose writer is
+    known to be gone (its process ended, its lock held by the caller): a live writer's staged file would vanish."""
+    removed = []
+    for path in sorted(Path(folder).rglob(".*")):
+        if _is_temporary(path.name) and path.is_file():
+            path.unlink(missing_ok=True)
+            removed.append(path)
+    return removed
 
 
 def atomic_write_bytes(path: str | Path, data: bytes) -> Path:
@@ -135,8 +233,9 @@ def save_figure(fig: Any, path: str | Path, *, dpi: int = 120, close: bool = Tru
         fig.savefig(tmp, dpi=dpi, format=(path.suffix.lstrip(".") or "png"), **kwargs)
         os.chmod(tmp, 0o666 & ~_umask())
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         tmp.unlink(missing_ok=True)
+        _name_the_file(exc, path)
         raise
     finally:
         if close:

@@ -31,7 +31,7 @@ from typing import Any
 
 from pneunet_env.files import deferred_interrupt
 
-__all__ = ["RunLock", "LOCK_NAME", "lock_path_for", "deferred_interrupt", "release_held"]
+__all__ = ["RunLock", "LOCK_NAME", "lock_path_for", "deferred_interrupt", "pid_alive", "release_dead", "release_held"]
 
 
 LOCK_NAME = ".lock"
@@ -50,13 +50,28 @@ def release_held() -> None:
         lock.release()
 
 
+def release_dead(target: str | os.PathLike, pid: int, *, file: bool = False) -> bool:
+    """Remove the lock of ``target`` if the process ``pid`` of this host holds it and is gone; whether it did.
+
+    For a parent whose worker process died (killed by the kernel's OOM killer, a scheduler's pre-emption): the
+    worker's lock goes at once, where a later command would otherwise take it over as stale, with a note. A lock held
+    by another process, or by ``pid`` still alive, is left as it is."""
+    lock = RunLock(target, file=file)
+    info = lock.holder()
+    if (not info or info.get("pid") != pid or info.get("host") != socket.gethostname() or pid == os.getpid()
+            or pid_alive(pid)):
+        return False
+    with deferred_interrupt():
+        return lock._take_over(info)
+
+
 def lock_path_for(target: str | os.PathLike, *, file: bool = False) -> Path:
     """The lock file of ``target``: ``target/.lock`` for a folder, ``DIR/.NAME.lock`` for the file ``DIR/NAME``."""
     target = Path(target)
     return target.with_name(f".{target.name}.lock") if file else target / LOCK_NAME
 
 
-def _pid_alive(pid: int) -> bool:
+def pid_alive(pid: int) -> bool:
     """Whether a process ``pid`` exists on this host (POSIX; on Windows, where this is not checked, ``True``)."""
     if pid <= 0:
         return False
@@ -143,7 +158,7 @@ class RunLock:
         """Whether a holder is provably gone: it ran on this host and its pid is dead."""
         pid = info.get("pid")
         return (isinstance(pid, int) and info.get("host") == socket.gethostname() and pid != os.getpid()
-                and not _pid_alive(pid))
+                and not pid_alive(pid))
 
     @staticmethod
     def describe(info: dict[str, Any]) -> str:

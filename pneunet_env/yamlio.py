@@ -16,14 +16,24 @@ normalisation statistics (:mod:`agents.policies`), and each ``--set`` value are 
   two YAML versions disagree on are refused with an error naming them rather than guessed: an integer with a leading
   zero (``017``: octal 15 in YAML 1.1, 17 in YAML 1.2) and a colon-separated number (``1:30``: 90 in YAML 1.1, a
   string in 1.2). Quote them for a string, or write ``0o17`` / ``17``.
-* **Booleans and null as PyYAML reads them** (YAML 1.1, as rl-zoo3 reads its files): ``true``/``false``,
-  ``yes``/``no``, ``on``/``off`` (any of the three capitalisations), ``null``, ``~`` and the empty value.
+* **Booleans: ``true`` and ``false``** (``true``, ``True``, ``TRUE``; the same for false): the booleans of YAML 1.2
+  and of YAML 1.1 alike. ``yes``/``no``/``on``/``off`` (any of the three capitalisations) are booleans in YAML 1.1
+  (PyYAML, rl-zoo3) and strings in YAML 1.2: like the ambiguous numbers below, they are refused with an error naming
+  the key (or the line) and saying ``write true or false`` (quote them for a string). So a file, ``--set`` and a
+  keyword argument take the same booleans: a config's boolean key takes ``true``/``false`` or a Python ``bool``
+  only (:func:`pneunet_env.config.check_bool` refuses ``"yes"``, ``1`` and ``0`` too).
+* **Null as YAML reads it:** ``null`` (any of the three capitalisations), ``~`` and the empty value.
 * **Bounded.** A document over :data:`MAX_INPUT_BYTES` (JSON: :data:`MAX_JSON_BYTES`), nested deeper than
   :data:`MAX_DEPTH`, with more than :data:`MAX_ALIASES` aliases, or whose aliases would expand it past
   :data:`MAX_EXPANDED_SIZE` (about that many characters, a "billion laughs" alias bomb) is refused as it is read,
   before anything is expanded. A recursive alias (``&a [*a]``) is refused.
+* **Regular files only.** A path that is a folder, a FIFO (opening it would wait for a writer for ever), a device
+  (``/dev/zero`` never ends) or a socket, or that is too long for the file system, is refused by name before it is
+  opened (:func:`check_input_file`; it is opened without blocking all the same).
 * **Named errors.** Every problem is a ``ValueError`` naming the source (the file's path, or ``--set 'KEY=VALUE'``)
-  and, for a syntax error, the line and column; no ``yaml`` or ``json`` exception escapes.
+  and, for a syntax error, the line and column; no ``yaml`` or ``json`` exception escapes. A value quoted in a
+  message is cut past :data:`SHOWN_CHARS` characters (:func:`short_repr`, :func:`cut_message`): its start, and its
+  length.
 
 :func:`dump_yaml` writes YAML that this reader reads back to the same values (a string that would read as a number
 is quoted).
@@ -31,12 +41,14 @@ is quoted).
 
 from __future__ import annotations
 
+import functools
 import json
 import json.decoder
 import json.scanner
 import math
 import os
 import re
+import stat
 from typing import Any
 
 import yaml
@@ -44,6 +56,11 @@ from yaml.constructor import ConstructorError
 from yaml.nodes import MappingNode, ScalarNode, SequenceNode
 
 __all__ = [
+    "check_input_file",
+    "cut_message",
+    "file_kind",
+    "path_too_long",
+    "short_repr",
     "load_yaml",
     "load_yaml_file",
     "parse_value",
@@ -55,6 +72,8 @@ __all__ = [
     "MAX_DEPTH",
     "MAX_ALIASES",
     "MAX_EXPANDED_SIZE",
+    "MAX_MESSAGE_CHARS",
+    "SHOWN_CHARS",
 ]
 
 MAX_INPUT_BYTES = 256 << 10
@@ -76,11 +95,15 @@ MAX_EXPANDED_SIZE = 4_000_000
 _TAG = "tag:yaml.org,2002:"
 _AMBIGUOUS_TAG = "tag:pneunet-env,2025:ambiguous-number"
 
-_BOOL = {"yes": True, "true": True, "on": True, "no": False, "false": False, "off": False}
+_AMBIGUOUS_BOOL_TAG = "tag:pneunet-env,2025:ambiguous-bool"
+
+_BOOL = {"true": True, "false": False}
 
 # Implicit types of plain scalars, in the order they are tried (for scalars starting with the same character).
 _RESOLVERS: list[tuple[str, str, str]] = [
-    (_TAG + "bool", r"^(?:yes|Yes|YES|no|No|NO|true|True|TRUE|false|False|FALSE|on|On|ON|off|Off|OFF)$", "yYnNtTfFoO"),
+    (_TAG + "bool", r"^(?:true|True|TRUE|false|False|FALSE)$", "tTfF"),
+    # YAML 1.1's other booleans, strings in YAML 1.2: refused (see the module)
+    (_AMBIGUOUS_BOOL_TAG, r"^(?:yes|Yes|YES|no|No|NO|on|On|ON|off|Off|OFF)$", "yYnNoO"),
     (_TAG + "null", r"^(?:~|null|Null|NULL|)$", "~nN"),
     (_TAG + "int", r"^[-+]?(?:0|[1-9][0-9_]*|0b[01_]*[01][01_]*|0o[0-7_]*[0-7][0-7_]*"
                    r"|0x[0-9a-fA-F_]*[0-9a-fA-F][0-9a-fA-F_]*)$", "-+0123456789"),
@@ -105,10 +128,52 @@ class _Refused(ConstructorError):
     """A document this reader refuses, though PyYAML would read it (a duplicate key, a limit, a refused form)."""
 
 
-def _short(value: Any, limit: int = 60) -> str:
-    """``repr(value)``, cut to about ``limit`` characters."""
+SHOWN_CHARS = 200
+"""The most characters of one value that a message shows (:func:`short_repr`, :func:`cut_message`): a longer value
+is cut to its start, and its length is said."""
+
+MAX_MESSAGE_CHARS = 4000
+"""The most characters of one message (:func:`cut_message`), once its over-long values are cut."""
+
+
+def short_repr(value: Any, limit: int = SHOWN_CHARS) -> str:
+    """``repr(value)`` as a message shows it: whole up to ``limit`` characters; longer, its start, ``...`` (``limit``
+    characters in all) and its length (a string's length in characters): ``'xxxx... (200,000 characters)``. A
+    200 kB string given as a config value is not echoed whole in the error that refuses it."""
     text = repr(value)
-    return text if len(text) <= limit else f"{text[:limit]}... ({len(text):,} characters)"
+    if len(text) <= limit:
+        return text
+    return f"{text[:limit - 3]}... ({len(value) if isinstance(value, str) else len(text):,} characters)"
+
+
+_short = functools.partial(short_repr, limit=60)  # a key or a number in a YAML error: cut shorter
+
+# a quoted value in a message ('...' or "...", as repr writes it: not the apostrophe of "model's"), or a run of
+# characters without a space
+_LONG_VALUE = re.compile(r"""(?<![\w'"])('(?:[^'\\\n]|\\.)*'|"(?:[^"\\\n]|\\.)*")(?!\w)|\S+""")
+
+
+def cut_message(text: str, limit: int = SHOWN_CHARS) -> str:
+    """``text`` (an error message) with every value in it longer than ``limit`` characters cut as
+    :func:`short_repr` cuts one (a quoted value, or any run of characters without a space: a path, a list written
+    without spaces), and the whole cut to :data:`MAX_MESSAGE_CHARS` (its start, and its length said). The one
+    place where a message that quotes its input is kept to a readable length (the command line's error line,
+    :func:`pneunet_env.config.load_config`'s errors)."""
+    text = str(text)
+    if len(text) <= limit:
+        return text
+
+    def cut(match: re.Match) -> str:
+        value = match.group(0)
+        if len(value) <= limit:
+            return value
+        quoted = match.group(1) is not None  # (cut as short_repr cuts: a message cut again is unchanged)
+        return f"{value[:limit - 3]}... ({len(value) - 2 if quoted else len(value):,} characters)"
+
+    out = _LONG_VALUE.sub(cut, text)
+    if len(out) > MAX_MESSAGE_CHARS:
+        out = f"{out[:MAX_MESSAGE_CHARS]}... (the message cut: {len(out):,} characters)"
+    return out
 
 
 class _Loader(yaml.SafeLoader):
@@ -156,7 +221,7 @@ class _Loader(yaml.SafeLoader):
     def construct_mapping(self, node: Any, deep: bool = False) -> Any:
         if isinstance(node, MappingNode):
             seen: dict[Any, int] = {}
-            for key_node, _ in node.value:
+            for key_node, value_node in node.value:
                 if key_node.tag == _TAG + "merge":
                     continue
                 key = self.construct_object(key_node, deep=deep)
@@ -171,6 +236,9 @@ class _Loader(yaml.SafeLoader):
                     raise _Refused(None, None, f"duplicate key {_short(key)} (first at line {seen[key]})",
                                            key_node.start_mark)
                 seen[key] = line
+                if value_node.tag == _AMBIGUOUS_BOOL_TAG:  # named with its key
+                    raise _Refused(None, None, f"key {_short(key)}: {_ambiguous_bool(value_node.value)}",
+                                   value_node.start_mark)
         return super().construct_mapping(node, deep=deep)
 
 
@@ -217,6 +285,17 @@ def _construct_ambiguous(loader: _Loader, node: Any) -> Any:
     raise _Refused(None, None, f"the number {_short(text)} is ambiguous ({hint}", node.start_mark)
 
 
+def _ambiguous_bool(text: str) -> str:
+    """Why ``yes``/``no``/``on``/``off`` are refused, and what to write instead."""
+    meant = "true" if text.lower() in ("yes", "on") else "false"
+    return (f"{text!r} is {meant} in YAML 1.1 (PyYAML, rl-zoo3) but a string in YAML 1.2: write true or false "
+            f"({meant} for {text!r}), or quote it for a string")
+
+
+def _construct_ambiguous_bool(loader: _Loader, node: Any) -> Any:
+    raise _Refused(None, None, _ambiguous_bool(loader.construct_scalar(node)), node.start_mark)
+
+
 def _construct_undefined(loader: _Loader, node: Any) -> Any:
     raise _Refused(None, None, f"the tag {node.tag!r} is not read (plain data only: mappings, lists, "
                            "strings, numbers, booleans, null)", node.start_mark)
@@ -232,6 +311,7 @@ _Loader.yaml_constructors = {
     _TAG + "seq": yaml.SafeLoader.construct_yaml_seq,
     _TAG + "map": yaml.SafeLoader.construct_yaml_map,
     _AMBIGUOUS_TAG: _construct_ambiguous,
+    _AMBIGUOUS_BOOL_TAG: _construct_ambiguous_bool,
     None: _construct_undefined,
 }
 
@@ -305,13 +385,83 @@ def parse_value(text: str, source: str = "--set") -> Any:
     return load_yaml(text, source)
 
 
-def _read_bytes(path: str | os.PathLike, what: str, limit: int) -> tuple[bytes, str]:
-    source = f"{what} {str(path)!r}"
+# ---------------------------------------------------------------------------------------------
+# Files: what may be opened to read
+# ---------------------------------------------------------------------------------------------
+
+_NOT_FILES = ((stat.S_ISDIR, "a folder"), (stat.S_ISFIFO, "a FIFO (a named pipe: reading it would wait for a writer)"),
+              (stat.S_ISCHR, "a character device"), (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket"))
+
+
+def file_kind(mode: int) -> str | None:
+    """What a file of ``st_mode`` ``mode`` is, in words, where it is not a regular file (``"a folder"``, ``"a FIFO
+    (...)"``, ``"a character device"``, ...); ``None`` for a regular file."""
+    return next((words for test, words in _NOT_FILES if test(mode)), None)
+
+
+def _limit(folder: str, name: str, default: int) -> int:
     try:
-        with open(path, "rb") as fh:
-            data = fh.read(limit + 1)
+        return int(os.pathconf(folder, name))
+    except (AttributeError, OSError, ValueError):  # no pathconf (Windows), or not known there
+        return default
+
+
+def path_too_long(path: str | os.PathLike) -> str | None:
+    """Why ``path`` is too long for the file system, in words (a name in it over ``NAME_MAX`` bytes, usually 255, or
+    the whole over ``PATH_MAX``, usually 4,096), or ``None``. Checked on the text: the file system says
+    ``ENAMETOOLONG`` only once it reaches the long name, and says "no such file" first where a folder above it is
+    missing."""
+    text = os.fsdecode(os.fspath(path))
+    raw = os.fsencode(text)
+    folder = os.path.dirname(os.path.abspath(text)) or os.sep
+    while not os.path.isdir(folder) and os.path.dirname(folder) != folder:  # (isdir: False for a too-long one)
+        folder = os.path.dirname(folder)
+    path_max, name_max = _limit(folder, "PC_PATH_MAX", 4096), _limit(folder, "PC_NAME_MAX", 255)
+    if os.sep == "\\":  # Windows: either slash
+        raw = raw.replace(b"\\", b"/")
+    longest = max((len(part) for part in raw.split(b"/")), default=0)
+    if longest > name_max:
+        return f"a name in it is {longest:,} bytes long; the file system takes at most {name_max:,}"
+    if len(raw) >= path_max:
+        return f"it is {len(raw):,} bytes long; the file system takes at most {path_max - 1:,}"
+    return None
+
+
+def check_input_file(path: str | os.PathLike, source: str) -> None:
+    """Refuse, before anything opens it, a path that cannot be read as a file: ``ValueError`` naming ``source`` for a
+    path too long for the file system (:func:`path_too_long`), or one that exists and is not a regular file (a
+    folder, a FIFO, whose opening would wait for a writer for ever, a device such as ``/dev/zero``, endless, or a
+    socket: :func:`file_kind`). A missing file passes (its reader says so, or finds it by another name)."""
+    why = path_too_long(path)
+    if why is not None:
+        raise ValueError(f"cannot read {source}: the path is too long ({why})")
+    try:
+        mode = os.stat(path).st_mode
+    except (OSError, ValueError):  # missing, unreadable, a NUL in the name: the reader's open names it
+        return
+    kind = file_kind(mode)
+    if kind is not None:
+        raise ValueError(f"cannot read {source}: it is {kind}, not a regular file")
+
+
+def _read_bytes(path: str | os.PathLike, what: str, limit: int) -> tuple[bytes, str]:
+    source = f"{what} {short_repr(os.fsdecode(os.fspath(path)))}"
+    check_input_file(path, source)  # a FIFO, a device or a too-long path: refused by name, before the open
+    try:
+        # not blocking: a FIFO put there since the check is not waited on (its kind is refused below)
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0) | getattr(os, "O_BINARY", 0))
     except OSError as exc:
         raise ValueError(f"cannot read {source}: {exc.strerror or exc}") from None
+    with os.fdopen(fd, "rb") as fh:
+        try:
+            kind = file_kind(os.fstat(fd).st_mode)
+            if kind is not None:
+                raise ValueError(f"cannot read {source}: it is {kind}, not a regular file")
+            if hasattr(os, "O_NONBLOCK"):
+                os.set_blocking(fd, True)
+            data = fh.read(limit + 1)
+        except OSError as exc:
+            raise ValueError(f"cannot read {source}: {exc.strerror or exc}") from None
     if len(data) > limit:
         raise ValueError(f"{source}: larger than the {limit:,} bytes read")
     return data, source

@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import os
+import shutil
+import tempfile
+
 import pytest
 
 from pneunet_env import ActuatorParams
@@ -22,3 +26,33 @@ def python_ctrl_c():
     before = signal.signal(signal.SIGINT, signal.default_int_handler)
     yield
     signal.signal(signal.SIGINT, before)
+
+
+@pytest.fixture(scope="session")
+def _sb3_logdir():
+    """``$SB3_LOGDIR`` for the session: a path of this process's own, absent until something logs there.
+
+    SB3 logs a ``learn()`` given no logger there (without it: a new ``$TMPDIR/SB3-<date and time>`` folder per call,
+    left behind). Per process, so that xdist's workers and other programs' SB3 folders never mix with it."""
+    root = tempfile.mkdtemp(prefix="pneunet-tests-sb3-")
+    path = os.path.join(root, "SB3")
+    before = os.environ.get("SB3_LOGDIR")
+    os.environ["SB3_LOGDIR"] = path
+    yield path
+    if before is None:
+        os.environ.pop("SB3_LOGDIR", None)
+    else:
+        os.environ["SB3_LOGDIR"] = before
+    shutil.rmtree(root, ignore_errors=True)
+
+
+@pytest.fixture(autouse=True)
+def _no_sb3_log_folder(_sb3_logdir):
+    """Fail a test that leaves an SB3 log folder: a model's ``learn()`` with no logger (give it
+    ``agents.train.no_folder_logger()``), which would have left ``$TMPDIR/SB3-<date and time>`` behind."""
+    yield
+    if os.path.lexists(_sb3_logdir):
+        shutil.rmtree(_sb3_logdir, ignore_errors=True)
+        pytest.fail("the test made an SB3 log folder (a learn() with no logger: without $SB3_LOGDIR it would be left "
+                    "in $TMPDIR as SB3-<date and time>); set the model's logger, e.g. agents.train.no_folder_logger()",
+                    pytrace=False)

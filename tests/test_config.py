@@ -244,3 +244,108 @@ def test_use_case_must_be_a_string():
 
     with pytest.raises(TypeError, match="'use_case' must be a string or null"):
         ObjectConfig(use_case=["kitchen"])
+
+
+# ---------------------------------------------------------------------------------------------
+# One rule for booleans, wherever typed (issue 32): a file, --set and a keyword argument agree
+# ---------------------------------------------------------------------------------------------
+
+# (the value as YAML text in a file and in --set, the same value as a keyword argument, what a boolean key reads)
+BOOLEANS = [
+    ("true", True, True), ("True", True, True), ("TRUE", True, True),
+    ("false", False, False), ("False", False, False), ("FALSE", False, False),
+    ("yes", "yes", None), ("no", "no", None), ("Yes", "Yes", None), ("NO", "NO", None),  # YAML 1.1's booleans
+    ("on", "on", None), ("off", "off", None), ("On", "On", None), ("OFF", "OFF", None),
+    ("1", 1, None), ("0", 0, None), ("1.0", 1.0, None),
+    ("'yes'", "yes", None), ("'true'", "true", None), ('"false"', "false", None),  # strings
+    ("null", None, None),
+]
+
+
+def _read_bool(key, text, value, tmp_path):
+    """What ``key`` reads from each path: ``{path: bool or the error's message}``."""
+    from agents.evaluate import parse_overrides
+
+    path = tmp_path / "b.yaml"
+    path.write_text(f"{key}: {text}\n")
+    section = "solver" if key == "free_table" else "task"
+    nested = tmp_path / "n.yaml"
+    nested.write_text(f"{section}:\n  {key}: {text}\n")
+    reads = {
+        "file": lambda: load_config(path),
+        "file, nested": lambda: load_config(nested),
+        "--set": lambda: load_config(None, **parse_overrides([f"{key}={text}"])),
+        "keyword": lambda: load_config(None, **{key: value}),
+        "gym.make": lambda: gym.make("PneuNetGrasp-v0", **{key: value}).unwrapped.config,
+    }
+    out = {}
+    for name, read in reads.items():
+        try:
+            out[name] = getattr(getattr(read(), section), key)
+        except ValueError as exc:  # ConfigTypeError is one too
+            out[name] = str(exc)
+    return out
+
+
+@pytest.mark.parametrize("key", ["observe_volume", "terminate_on_damage", "free_table"])
+@pytest.mark.parametrize(("text", "value", "reads"), BOOLEANS)
+def test_a_boolean_key_reads_the_same_from_a_file_set_and_a_keyword_argument(key, text, value, reads, tmp_path):
+    """Before: ``yes``/``no``/``on``/``off`` in a file or ``--set`` were booleans (YAML 1.1), and the same value as a
+    keyword argument (``observe_volume="yes"``) was refused: one value, two answers. Now one rule: ``true``/``false``
+    (any of YAML's three capitalisations) or a Python ``bool``; anything else is refused on every path, naming the key
+    and the value and saying what to write."""
+    got = _read_bool(key, text, value, tmp_path)
+    if reads is not None:
+        assert got == dict.fromkeys(got, reads)
+        return
+    for path, message in got.items():
+        assert isinstance(message, str), (path, message)
+        assert key in message and "write true or false" in message, (path, message)
+        assert repr(value) in message or text in message, (path, message)
+
+
+def test_the_bool_message_names_the_value_and_its_kind():
+    from pneunet_env.config import ConfigTypeError
+
+    with pytest.raises(ConfigTypeError, match=r"'observe_volume' must be true or false, got 'yes' \(a string\): "
+                                              "write true or false"):
+        load_config(observe_volume="yes")
+    with pytest.raises(ConfigTypeError, match=r"got 1 \(an integer\)"):
+        load_config(observe_volume=1)
+
+
+# ---------------------------------------------------------------------------------------------
+# Unknown keys: the closest valid key (issue 32)
+# ---------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize(("typed", "meant"), [
+    ("max_presure_kpa", "max_pressure_kpa"), ("observe_volum", "observe_volume"), ("Observe_Volume", "observe_volume"),
+    ("task.max_pressure_kpa", "max_pressure_kpa"), ("usecase", "use_case"), ("free_tabel", "free_table"),
+    ("render_widht", "render_width"), ("object_curvature_per_mm", "object_curvature_per_m"),
+])
+def test_an_unknown_key_names_the_closest_valid_key_in_a_file_set_and_keywords(typed, meant, tmp_path):
+    """Before: every one of the 46 valid keys, and no "did you mean"."""
+    from agents.evaluate import parse_overrides
+
+    path = tmp_path / "c.yaml"
+    path.write_text(f"{typed}: 1\n")
+    for read in (lambda: load_config(path), lambda: load_config(None, **parse_overrides([f"{typed}=1"])),
+                 lambda: load_config(None, **{typed: 1}), lambda: gym.make("PneuNetGrasp-v0", **{typed: 1})):
+        with pytest.raises(ValueError) as info:
+            read()
+        message = str(info.value)
+        assert f"unknown config key {typed!r}; did you mean {meant!r}" in message, message
+        assert "valid keys" not in message and len(message) < 200  # the one key, not all 46
+
+
+def test_an_unknown_key_nothing_is_close_to_lists_every_valid_key():
+    with pytest.raises(ValueError, match="unknown config key 'zzz'; valid keys: actuator.") as info:
+        load_config(zzz=1)
+    assert "task.observe_volume" in str(info.value) and "did you mean" not in str(info.value)
+
+
+def test_a_key_in_another_section_says_which():
+    with pytest.raises(ValueError, match="unknown config key 'max_presure_kpa'; did you mean 'max_pressure_kpa' "
+                                         r"\(section 'task'\)"):
+        load_config({"task": {"max_presure_kpa": 1}})

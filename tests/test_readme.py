@@ -2,8 +2,10 @@
 
 The snippets are the fenced ```python blocks of the "Quick start" and "Use with ..." sections. Each runs with
 ``exec`` in a fresh namespace, in-process (torch and numba are imported once for all: about 10 s in all on the
-2-core machine), from the repository root. The rl-zoo3 command line of "Use with ..." is a bash block: the slow
-``tests/agents/test_zoo.py`` runs it.
+2-core machine), in an empty folder (what a snippet saves stays out of the repository). A training snippet shows
+the size it was measured at; it runs here at smoke size (:func:`smoke`). The rl-zoo3 command line of "Use with ..."
+is a bash block: the slow ``tests/agents/test_zoo.py`` runs it; ``tests/envs/test_sb3_examples.py`` runs the SB3
+snippets as a user would.
 """
 
 from __future__ import annotations
@@ -24,6 +26,9 @@ FENCE = re.compile(r"^```python\n(.*?)^```", re.S | re.M)
 HEADING = re.compile(r"^(#{1,6}) (.+?)\s*$", re.M)
 LINK = re.compile(r"!?\[(?:[^\]\[]|\[[^\]]*\])*\]\(([^)\s]+)(?:\s+\"[^\"]*\")?\)")
 HAS_SB3 = importlib.util.find_spec("stable_baselines3") is not None
+SIZE = re.compile(r"\btotal_timesteps=([\d_]+)")
+SMOKE_TIMESTEPS = 1
+"""A training snippet's ``learn(total_timesteps=N)`` runs with this: one rollout and one update."""
 
 
 def section(text: str, title: str) -> str:
@@ -42,6 +47,11 @@ def snippets() -> list[tuple[str, str]]:
         for i, code in enumerate(FENCE.findall(section(text, title))):
             out.append((f"{title.split()[0].lower()}-{i}", code))
     return out
+
+
+def smoke(code: str) -> str:
+    """The snippet at smoke size: every ``total_timesteps=N`` becomes :data:`SMOKE_TIMESTEPS`."""
+    return SIZE.sub(f"total_timesteps={SMOKE_TIMESTEPS}", code)
 
 
 def _params():
@@ -63,10 +73,18 @@ def test_the_snippets_are_found():
 
 
 @pytest.mark.parametrize("code", _params())
-def test_readme_snippet_runs(code, monkeypatch):
-    monkeypatch.chdir(ROOT)
+def test_readme_snippet_runs(code, monkeypatch, tmp_path):
+    monkeypatch.chdir(tmp_path)
+    # SB3 logs a learn() given no logger (as the README's, like any user's) to $SB3_LOGDIR: here, the test's own folder
+    monkeypatch.setenv("SB3_LOGDIR", str(tmp_path / "SB3"))
     namespace = {"__name__": "__readme__"}
-    exec(compile(code, "README.md", "exec"), namespace)
+    torch = importlib.import_module("torch") if importlib.util.find_spec("torch") else None
+    threads = None if torch is None else torch.get_num_threads()
+    try:
+        exec(compile(smoke(code), "README.md", "exec"), namespace)
+    finally:  # a snippet may set torch's threads (the SB3 ones do): the rest of the session keeps its own
+        if threads is not None:
+            torch.set_num_threads(threads)
 
 
 def test_rl_zoo3_command_names_the_project_files():

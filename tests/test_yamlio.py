@@ -137,10 +137,24 @@ def test_set_5e1_is_a_number_for_the_env_config():
     assert cfg.objects.object_density_kg_m3 == (50.0, 50.0) and cfg.task.max_pressure_kpa == 45.0
 
 
-def test_booleans_and_null_read_as_pyyaml_and_rl_zoo3_read_them():
-    assert [parse_value(t) for t in ("true", "False", "yes", "NO", "on", "Off")] == [True, False, True, False, True,
-                                                                                      False]
+def test_booleans_are_true_and_false_and_null_reads_as_yaml_reads_it():
+    assert [parse_value(t) for t in ("true", "True", "TRUE", "false", "False", "FALSE")] == [True] * 3 + [False] * 3
     assert [parse_value(t) for t in ("null", "~", "", "Null")] == [None] * 4
+    assert [parse_value(t) for t in ("'yes'", '"on"', "y", "n")] == ["yes", "on", "y", "n"]  # quoted, or not 1.1's
+
+
+@pytest.mark.parametrize("text", ["yes", "Yes", "YES", "no", "No", "NO", "on", "On", "ON", "off", "Off", "OFF"])
+def test_yaml_1_1_booleans_are_refused_as_ambiguous(text):
+    """Before: read as booleans (YAML 1.1, as PyYAML reads them) in a file and ``--set``, while a keyword argument
+    refused "yes": one value, two answers. They are strings in YAML 1.2: refused, like ``017`` and ``1:30``."""
+    meant = "true" if text.lower() in ("yes", "on") else "false"
+    with pytest.raises(ValueError, match=rf"--set 'k={text}'.*'{text}' is {meant} in YAML 1.1 .* write true or false"):
+        parse_value(text, f"--set 'k={text}'")
+    with pytest.raises(ValueError, match=rf"c.yaml', line 2, column 6: key 'k': '{text}' is {meant}"):
+        load_yaml(f"a:\n  k: {text}\n", "config file 'c.yaml'")
+    with pytest.raises(ValueError, match=rf"line 1, column 5: '{text}' is {meant}"):  # in a list: its line
+        load_yaml(f"[1, {text}]")
+    assert load_yaml(dump_yaml({"k": text})) == {"k": text}  # written quoted: read back as the string
 
 
 # ---------------------------------------------------------------------------------------------

@@ -11,7 +11,7 @@ from pathlib import Path
 
 from agents.design.outputs import write_design
 from agents.design.space import parse_bounds
-from agents.design.study import StudySpec, _optuna, make_storage, report, run_study, work
+from agents.design.study import StudySpec, make_storage, report, run_study, work
 from pneunet_env import arguments as checks
 from pneunet_env.files import atomic_write_text
 
@@ -92,9 +92,7 @@ def spec_from_args(args: argparse.Namespace) -> StudySpec:
                      storage=args.storage, study_name=args.study_name, seed=args.seed, objects=args.objects,
                      held_out=args.held_out, sampler=args.sampler, bounds=parse_bounds(args.bound),
                      config=args.config, top=args.top)
-    if spec.storage is not None:
-        make_storage(spec.storage, out)  # a bad URL is named now, not after the work
-    _optuna()
+    make_storage(spec.storage, out)  # a storage it must not write to, or cannot reach, is named now, before any work
     return spec
 
 
@@ -148,9 +146,17 @@ def _run_checks(args: argparse.Namespace) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """``python -m agents.design``: as ``pneunet-grasp design``; Ctrl-C ends it with one line (what to run again)
+    and exit status 130."""
     parser = argparse.ArgumentParser(prog="pneunet-grasp design", description=_DESCRIPTION)
     add_arguments(parser)
-    return run(parser.parse_args(argv))
+    args = parser.parse_args(argv)
+    try:
+        return run(args)
+    except KeyboardInterrupt as exc:
+        note = " ".join(str(a) for a in exc.args if str(a).strip())
+        print(f"{parser.prog}: interrupted" + (f" {note}" if note else ""), file=sys.stderr)
+        return 130
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -4,6 +4,7 @@ importance)."""
 from __future__ import annotations
 
 import json
+import textwrap
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -53,6 +54,7 @@ def write_design(path: Path, row: dict[str, Any], base: EnvConfig, study: str) -
     cfg = design_config(row["params"], base)
     ramp = LinearRamp(s["target"], RAMP_STEPS, cfg)
     data = {**ramp.to_dict(), "gripper": "pneunet", "target_kpa": s["pressure_kpa"],
+            "max_pressure_kpa": cfg.task.max_pressure_kpa,  # what target is a fraction of (agents.scripted.ramp_target)
             "search": {"by": "pneunet-grasp design", "study": study, "trial": row["trial"],
                        "objects": s["objects"]["all"]},
             "score": {"search": {k: s[k] for k in ("blind", "oracle", "robust")},
@@ -91,15 +93,47 @@ def _save(fig, path: Path, plt) -> Path:
     return save_figure(fig, path, dpi=120)
 
 
+def _wrap(text: str, width_in: float, fontsize: float) -> str:
+    """``text`` broken into lines no wider than ``width_in`` inches at ``fontsize`` points, its own line breaks kept:
+    a long list of class weights must not run off the figure (tight_layout moves the axes, never shortens a title).
+    A character is taken as 0.62 em wide (DejaVu Sans averages about 0.55)."""
+    chars = max(20, int(width_in * 72.0 / (0.62 * fontsize)))
+    return "\n".join(textwrap.fill(line, chars) for line in text.splitlines())
+
+
+def _title_and_layout(fig, ax, text: str, fontsize: float) -> None:
+    """``ax``'s title, wrapped to the axes' width (a title is centred on its axes, not on the figure), then
+    ``tight_layout``: laid out once to find that width, and again with the title."""
+    fig.tight_layout()
+    ax.set_title(_wrap(text, ax.get_position().width * fig.get_figwidth(), fontsize), fontsize=fontsize)
+    fig.tight_layout()
+
+
 def _use_case_title(result: dict[str, Any]) -> str:
     st = result["settings"]
     return st["use_case"] if st["class_weights"] is None else "class weights " + ", ".join(
         f"{k} {v:g}" for k, v in st["class_weights"].items())
 
 
+def _table1(result: dict[str, Any]) -> dict[str, Any] | None:
+    """The study's Table 1 row (``None`` without one)."""
+    return next((row for row in result["designs"] if row["label"] == "table1"), None)
+
+
+def _is_table1(row: dict[str, Any], table1: dict[str, Any] | None) -> bool:
+    """Whether a ranked design is Table 1's actuator itself (its trial, or the same parameters): a small study's best
+    may be."""
+    return table1 is not None and row is not table1 and row["params"] == table1["params"]
+
+
 def plot_pareto(result: dict[str, Any], path: Path, plt) -> Path:
     """Blind success on force- against position-controlled objects (Table 1's labels), every design of the study;
     colour: the worse regime under manufacturing error; the Pareto front ringed; Table 1 and the best marked."""
+    return _save(pareto_figure(result, plt), path, plt)
+
+
+def pareto_figure(result: dict[str, Any], plt):
+    """:func:`plot_pareto`'s figure (not saved)."""
     pts = result["all"]
     x = np.array([p["objectives"][0] for p in pts])
     y = np.array([p["objectives"][1] for p in pts])
@@ -113,9 +147,10 @@ def plot_pareto(result: dict[str, Any], path: Path, plt) -> Path:
         if row["label"] == "table1":
             ax.plot(s["blind"]["force"], s["blind"]["position"], "*", ms=16, color="#d62728", mec="black",
                     label=f"Table 1 actuator ({s['pressure_kpa']:.1f} kPa)")
-        elif row["label"] == "rank-1":
+        elif row["label"] == "rank-1":  # drawn over Table 1's star (smaller): both show if they are one design
+            what = "Table 1 itself" if _is_table1(row, _table1(result)) else row["params"]["elastomer"]
             ax.plot(s["blind"]["force"], s["blind"]["position"], "D", ms=9, color="#ff7f0e", mec="black",
-                    label=f"best design ({row['params']['elastomer']}, {s['pressure_kpa']:.1f} kPa)")
+                    label=f"best design ({what}, {s['pressure_kpa']:.1f} kPa)")
     fig.colorbar(sc, ax=ax, label="worse regime under manufacturing error")
     ax.set_xlabel("blind success, force-controlled objects")
     ax.set_ylabel("blind success, position-controlled objects")
@@ -123,11 +158,10 @@ def plot_pareto(result: dict[str, Any], path: Path, plt) -> Path:
     ax.set_ylim(-0.03, 1.03)
     ax.grid(True, alpha=0.3)
     ax.legend(fontsize=7.5, loc="lower left")
-    ax.set_title(f"Actuator designs for {_use_case_title(result)}: one blind ramp each\n"
-                 f"({result['scored']} designs, {result['objects']} search objects; regimes by Table 1's labels)",
-                 fontsize=9)
-    fig.tight_layout()
-    return _save(fig, path, plt)
+    _title_and_layout(fig, ax, f"Actuator designs for {_use_case_title(result)}: one blind ramp each\n"
+                      f"({result['scored']} designs, {result['objects']} search objects; regimes by Table 1's "
+                      "labels)", 9)
+    return fig
 
 
 def free_curve(params: Mapping[str, Any], base: EnvConfig, n: int = 121) -> tuple[np.ndarray, np.ndarray]:
@@ -140,28 +174,45 @@ def free_curve(params: Mapping[str, Any], base: EnvConfig, n: int = 121) -> tupl
     return ps, lp.curvature
 
 
+TABLE1_COLOUR = "#d62728"
+"""Table 1's colour in the design figures (red); its curves are dashed and drawn over the designs'."""
+
+
 def plot_curves(result: dict[str, Any], base: EnvConfig, path: Path, plt) -> Path:
     """The best designs beside Table 1: (a) the free pressure-curvature curve, dimensionless as the paper's Fig. 3;
     (b) the same in kPa and 1/m, with the blind pressure and the objects' curvatures; (c) blind success against
     the blind pressure, with the window within 5 points of the best."""
+    return _save(curves_figure(result, base, plt), path, plt)
+
+
+def curves_figure(result: dict[str, Any], base: EnvConfig, plt):
+    """:func:`plot_curves`' figure (not saved). Table 1 is red and dashed, drawn over the designs (``zorder``): a
+    design identical to it (a small study's best may be Table 1's trial itself) shows through the dashes, and its
+    legend entry says ``= Table 1``, instead of hiding Table 1's line under its own."""
     from pneunet_env.catalogue import class_table
 
     fig, axes = plt.subplots(1, 3, figsize=(15, 4.4))
     colours = iter(["#1f77b4", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#17becf", "#7f7f7f", "#bcbd22"] * 4)
+    table1 = _table1(result)
     for row in result["designs"]:
-        col = "#d62728" if row["label"] == "table1" else next(colours)
+        is_t1 = row is table1
+        col = TABLE1_COLOUR if is_t1 else next(colours)
+        line = dict(color=col, lw=2.0, ls=(0, (5, 3)), zorder=3) if is_t1 else dict(color=col, lw=1.6, zorder=2)
+        dot = dict(color=col, mec="black", ms=7, zorder=4 if is_t1 else 3)
         s = row["search"]
         mu = row["elastomer"]["shear_modulus_kpa"]
         w = row["params"]["width_mm"]
         ps, k = free_curve(row["params"], base)
-        lab = ("Table 1" if row["label"] == "table1" else row["label"]) + f" ({row['params']['elastomer']})"
-        axes[0].plot(ps, k, color=col, lw=1.6, label=lab)
-        axes[1].plot(ps * mu, k / (w * 1e-3), color=col, lw=1.6, label=lab)
+        lab = ("Table 1" if is_t1 else row["label"]) + f" ({row['params']['elastomer']})"
+        if _is_table1(row, table1):
+            lab += " = Table 1"
+        axes[0].plot(ps, k, label=lab, **line)
+        axes[1].plot(ps * mu, k / (w * 1e-3), label=lab, **line)
         kb = np.interp(s["pressure_kpa"] / mu, ps, k) / (w * 1e-3)
-        axes[1].plot(s["pressure_kpa"], kb, "o", color=col, mec="black", ms=7)
-        axes[2].plot(s["pressures_kpa"], s["rate_vs_pressure"], color=col, lw=1.6, label=lab)
+        axes[1].plot(s["pressure_kpa"], kb, "o", **dot)
+        axes[2].plot(s["pressures_kpa"], s["rate_vs_pressure"], label=lab, **line)
         axes[2].axvspan(*s["window_kpa"], color=col, alpha=0.12, lw=0)
-        axes[2].plot(s["pressure_kpa"], s["blind"]["all"], "o", color=col, mec="black", ms=7)
+        axes[2].plot(s["pressure_kpa"], s["blind"]["all"], "o", **dot)
     cfg = base
     radius = class_table(cfg.objects.class_items).radius_mm if cfg.objects.from_catalogue else None
     if radius is not None:
@@ -183,23 +234,27 @@ def plot_curves(result: dict[str, Any], base: EnvConfig, path: Path, plt) -> Pat
     for ax in axes:
         ax.grid(True, alpha=0.3)
         ax.legend(fontsize=7)
-    fig.suptitle(f"Why the design works ({_use_case_title(result)})", fontsize=10)
+    fig.suptitle(_wrap(f"Why the design works ({_use_case_title(result)})", fig.get_figwidth(), 10), fontsize=10)
     fig.tight_layout()
-    return _save(fig, path, plt)
+    return fig
 
 
 def plot_importance(result: dict[str, Any], path: Path, plt) -> Path:
     """Optuna's PED-ANOVA importance of each design parameter for the design score."""
+    return _save(importance_figure(result, plt), path, plt)
+
+
+def importance_figure(result: dict[str, Any], plt):
+    """:func:`plot_importance`'s figure (not saved); its labels fit (the x label on two lines, the title wrapped)."""
     imp = result["importance"]
     fig, ax = plt.subplots(figsize=(6, 3.2))
     if imp:
         names = list(imp)[::-1]
         ax.barh(names, [imp[n] for n in names], color="#4c72b0")
-        ax.set_xlabel("importance for the design score (PED-ANOVA: top designs against all)")
+        ax.set_xlabel("importance for the design score\n(PED-ANOVA: top designs against all)")
     else:
         ax.text(0.5, 0.5, "too few designs for an importance estimate", ha="center", va="center")
         ax.set_axis_off()
-    ax.set_title(f"What matters for one blind schedule ({_use_case_title(result)}, {result['scored']} designs)",
-                 fontsize=9)
-    fig.tight_layout()
-    return _save(fig, path, plt)
+    _title_and_layout(fig, ax, f"What matters for one blind schedule ({_use_case_title(result)}, "
+                      f"{result['scored']} designs)", 9)
+    return fig

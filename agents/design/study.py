@@ -2,10 +2,17 @@
 
 from __future__ import annotations
 
+import contextlib
+import datetime
 import json
+import logging
 import math
 import os
+import signal
+import socket
+import threading
 import time
+import warnings
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -41,30 +48,146 @@ def _optuna():
     return optuna
 
 
+STORAGE_TIMEOUT_S = 10.0
+"""How long an RDB server may take to answer before ``--storage URL`` is refused (seconds)."""
+
+_RDB_SCHEMES = ("sqlite", "postgresql", "mysql", "oracle", "mssql")
+_CONNECT_TIMEOUT = {"postgresql": "connect_timeout", "mysql": "connect_timeout"}
+"""The drivers' own connection time-out argument, by dialect (seconds)."""
+
+
+def _check_file(path: Path, name: str, what: str, is_kind) -> None:
+    """Refuse ``path`` (``ValueError`` naming ``name``) unless it is ``what`` (``is_kind(path)`` of a non-empty file),
+    or a new or empty file in a writable folder. Reads only: a refused file is left as it was, byte for byte."""
+    if path.is_dir():
+        raise ValueError(f"{name}: {str(path)!r} is a folder, not {what}")
+    folder = path.parent
+    if not folder.is_dir():
+        raise ValueError(f"{name}: the folder {str(folder)!r} does not exist" if not folder.exists() else
+                         f"{name}: {str(folder)!r} is not a folder")
+    if not path.exists():
+        if not os.access(folder, os.W_OK | os.X_OK):
+            raise ValueError(f"{name}: cannot create {str(path)!r}: the folder is not writable")
+        return
+    if not path.is_file():
+        raise ValueError(f"{name}: {str(path)!r} is not a regular file (a device, a pipe or a socket), not {what}")
+    if not os.access(path, os.R_OK | os.W_OK):
+        raise ValueError(f"{name}: {str(path)!r} cannot be both read and written")
+    if path.stat().st_size and not is_kind(path):
+        raise ValueError(f"{name}: {str(path)!r} is not {what}; it is left as it is: name a new or empty file, or "
+                         f"{what}")
+
+
+def _is_journal(path: Path) -> bool:
+    """Whether ``path``'s first line is an Optuna journal record (a JSON object with an ``op_code``)."""
+    try:
+        with open(path, "rb") as fh:
+            line = fh.readline(1 << 20)
+        record = json.loads(line)
+    except (OSError, ValueError):
+        return False
+    return isinstance(record, dict) and isinstance(record.get("op_code"), int)
+
+
+def _is_optuna_sqlite(path: Path) -> bool:
+    """Whether ``path`` is an SQLite database with Optuna's tables, or with none (read-only: nothing is written)."""
+    import sqlite3
+
+    try:
+        with open(path, "rb") as fh:
+            if fh.read(16) != b"SQLite format 3\x00":
+                return False
+        con = sqlite3.connect(f"{path.resolve().as_uri()}?mode=ro", uri=True)
+        try:
+            tables = {row[0] for row in con.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
+        finally:
+            con.close()
+    except (OSError, sqlite3.Error):
+        return False
+    return not tables or {"studies", "version_info"} <= tables
+
+
+def check_storage(storage: str | None, out: Path) -> None:
+    """Refuse a storage the study must not write to, before anything is written (``ValueError`` naming it).
+
+    ``journal:PATH`` must be an Optuna journal, or a new or empty file in a writable folder: a folder, a device
+    (``/dev/null``), a missing folder or a file of another kind (a text file) is refused, and left as it was.
+    ``sqlite:///PATH`` (and the default ``OUT/study.db``) the same, for an SQLite database with Optuna's tables (a
+    database of something else is refused too: the study would add its tables to it). Other RDB URLs are checked
+    when they are opened (:func:`make_storage`)."""
+    if storage is None:
+        path = out / "study.db"
+        if path.exists() or path.is_symlink():
+            _check_file(path, f"--out {str(out)!r}", "an SQLite database of Optuna", _is_optuna_sqlite)
+        return
+    name = f"--storage {storage!r}"
+    if storage.startswith("journal:"):
+        text = storage[len("journal:"):]
+        if not text:
+            raise ValueError(f"{name}: journal: needs a file path")
+        _check_file(Path(text), name, "an Optuna journal", _is_journal)
+    elif storage.split(":", 1)[0].split("+")[0] == "sqlite":
+        from sqlalchemy.engine import make_url
+        from sqlalchemy.exc import ArgumentError
+
+        try:
+            database = make_url(storage).database
+        except ArgumentError as exc:
+            raise ValueError(f"{name} is not a valid URL ({exc})") from None
+        if database and database != ":memory:" and not database.startswith("file:"):
+            _check_file(Path(database), name, "an SQLite database of Optuna", _is_optuna_sqlite)
+
+
+def _open_rdb(optuna, storage: str):
+    """``RDBStorage(storage)``, or a ``ValueError`` naming the URL if it fails or takes more than
+    :data:`STORAGE_TIMEOUT_S` (the driver's own connection time-out set where the dialect has one; the opening runs in
+    a daemon thread, so that a server that never answers does not hold the command)."""
+    dialect = storage.split("://", 1)[0].split("+")[0]
+    kwargs: dict[str, Any] = {}
+    if dialect in _CONNECT_TIMEOUT:
+        kwargs["engine_kwargs"] = {"connect_args": {_CONNECT_TIMEOUT[dialect]: int(STORAGE_TIMEOUT_S)}}
+    result: list[Any] = []
+
+    def opening() -> None:
+        try:
+            with _knowingly():  # the heartbeat's ExperimentalWarning: used as it is
+                result.append(optuna.storages.RDBStorage(storage, heartbeat_interval=60, grace_period=120, **kwargs))
+        except BaseException as exc:  # a driver missing, a bad URL, a server that refuses: named below
+            result.append(exc)
+
+    thread = threading.Thread(target=opening, name="open --storage", daemon=True)
+    thread.start()
+    thread.join(STORAGE_TIMEOUT_S)
+    if not result:
+        raise ValueError(f"--storage {storage!r}: no answer within {STORAGE_TIMEOUT_S:g} s (is the server running "
+                         "and reachable?)")
+    if isinstance(result[0], BaseException):
+        exc = result[0]
+        raise ValueError(f"--storage {storage!r}: cannot open it ({type(exc).__name__}: {exc})") from None
+    return result[0]
+
+
 def make_storage(storage: str | None, out: Path):
     """The study's storage: ``None`` -> a SQLite file ``out/study.db``; ``journal:PATH`` -> an Optuna journal file
     (one file several processes append to); any other string -> an Optuna RDB URL (``sqlite:///...``,
-    ``postgresql://...``, ``mysql://...``), which workers on several machines can share."""
+    ``postgresql://...``, ``mysql://...``), which workers on several machines can share. Each is checked first
+    (:func:`check_storage`: nothing is written to a storage that is refused); an RDB server that does not answer
+    within :data:`STORAGE_TIMEOUT_S` is refused by name."""
     optuna = _optuna()
+    if storage is not None and (not isinstance(storage, str) or not storage.strip()):
+        raise ValueError(f"--storage must be an Optuna storage URL or journal:PATH, got {storage!r}")
+    check_storage(storage, out)
     if storage is None:
         return f"sqlite:///{(out / 'study.db').resolve()}"
-    if not isinstance(storage, str) or not storage.strip():
-        raise ValueError(f"--storage must be an Optuna storage URL or journal:PATH, got {storage!r}")
     if storage.startswith("journal:"):
-        path = storage[len("journal:"):]
-        if not path:
-            raise ValueError(f"--storage {storage!r}: journal: needs a file path")
         from optuna.storages.journal import JournalFileBackend
 
-        return optuna.storages.JournalStorage(JournalFileBackend(path))
+        return optuna.storages.JournalStorage(JournalFileBackend(storage[len("journal:"):]))
     scheme = storage.split("://", 1)[0] if "://" in storage else ""
-    if not scheme or scheme.split("+")[0] not in ("sqlite", "postgresql", "mysql", "oracle", "mssql"):
+    if not scheme or scheme.split("+")[0] not in _RDB_SCHEMES:
         raise ValueError(f"--storage {storage!r} is not an RDB URL (sqlite:///PATH, postgresql://..., mysql://...) "
                          "or journal:PATH")
-    try:
-        return optuna.storages.RDBStorage(storage, heartbeat_interval=60, grace_period=120)
-    except Exception as exc:  # a driver missing, a bad URL, a server that does not answer: named, one line
-        raise ValueError(f"--storage {storage!r}: cannot open it ({type(exc).__name__}: {exc})") from None
+    return _open_rdb(optuna, storage)
 
 
 @dataclass
@@ -135,31 +258,144 @@ def _objectives(s: DesignScore) -> tuple[float, float, float]:
     return f(s.blind["force"]), f(s.blind["position"]), min(f(s.robust["force"]), f(s.robust["position"]))
 
 
-def _objective(spec: StudySpec, seeds: np.ndarray, reference: np.ndarray, parallel: bool | None):
+def _end_session(study) -> None:
+    """Close the RDB storage's session and connections (``RDBStorage.remove_session``, the engine disposed): a
+    transaction that a Ctrl-C cut is rolled back, and the lock it held on an SQLite file released (else the next
+    write waits for it, then fails)."""
+    storage = getattr(study._storage, "_backend", study._storage)  # Optuna wraps an RDB storage in a cache
+    with contextlib.suppress(Exception):
+        if hasattr(storage, "remove_session"):
+            storage.remove_session()
+            storage.engine.dispose()  # every pooled connection closed: whatever the cut left open goes with it
+
+
+def _worker_name(pid: int | None = None) -> str:
+    """How a trial names the process that runs it: ``HOST:PID``."""
+    return f"{socket.gethostname()}:{os.getpid() if pid is None else pid}"
+
+
+class _Interrupts:
+    """While a study optimises: a Ctrl-C raises ``KeyboardInterrupt`` only inside a design's evaluation
+    (:meth:`evaluation`). Elsewhere (Optuna's storage writes: a trial's creation, its parameters, its result) it is
+    noted, and raised as the next evaluation begins or when the optimisation ends: a write cut half-way leaves a
+    trial that Optuna can neither tell nor fail (its ``AssertionError('Should not reach.')``) and an SQLite file
+    locked. An error that compiled code made of a Ctrl-C (numba's compiler) is the interrupt all the same. Only in
+    the main thread, under Python's handler or :func:`pneunet_env.files.interrupt_once` (a worker's); else nothing
+    changes."""
+
+    def __init__(self) -> None:
+        self.noted = self.armed = self.active = False
+        self.previous: Any = None
+
+    def __enter__(self) -> _Interrupts:
+        from pneunet_env.files import interrupt_once
+
+        previous = signal.getsignal(signal.SIGINT)
+        if threading.current_thread() is threading.main_thread() and previous in (signal.default_int_handler,
+                                                                                 interrupt_once):
+            self.previous, self.active = previous, True
+            signal.signal(signal.SIGINT, self._handle)
+        return self
+
+    def _handle(self, signum, frame) -> None:
+        self.noted = True
+        if self.armed:
+            self.armed = False
+            raise KeyboardInterrupt
+
+    @contextlib.contextmanager
+    def evaluation(self):
+        if self.noted:
+            raise KeyboardInterrupt
+        self.armed = True
+        try:
+            yield
+        finally:
+            self.armed = False
+
+    def __exit__(self, kind, value, tb) -> None:
+        from pneunet_env.files import interrupt_once
+
+        if self.active:  # a worker's one interrupt, once spent, stays spent
+            signal.signal(signal.SIGINT, signal.SIG_IGN if self.noted and self.previous is interrupt_once
+                          else self.previous)
+        if self.noted and (kind is None or not issubclass(kind, KeyboardInterrupt)):
+            raise KeyboardInterrupt from None
+
+
+def _objective(spec: StudySpec, seeds: np.ndarray, reference: np.ndarray, parallel: bool | None,
+               interrupts: _Interrupts | None = None):
     optuna = _optuna()
     base = spec.base_config()
+    interrupts = interrupts or _Interrupts()
 
     def objective(trial):
+        # first of all: a trial whose process dies from here on is known by its process (:func:`fail_trials_of`)
+        trial.set_user_attr("worker", _worker_name())
         params = _suggest(trial, spec)
         try:
-            s = evaluate_design(params, seeds, reference, base, spec.seed, parallel=parallel)
+            with interrupts.evaluation():
+                s = evaluate_design(params, seeds, reference, base, spec.seed, parallel=parallel)
         except ValueError as exc:  # a geometry the model refuses (no cavity left): not a design
             trial.set_user_attr("invalid", str(exc))
             raise optuna.TrialPruned(str(exc)) from None
         trial.set_user_attr("score", s.to_dict())
-        trial.set_user_attr("worker", f"{os.uname().nodename}:{os.getpid()}")
         return _objectives(s)
 
     return objective
 
 
+@contextlib.contextmanager
+def _knowingly():
+    """Optuna's notes on what this module uses on purpose, silenced for the calls inside: the ``ExperimentalWarning``
+    of the multivariate TPE's ``group`` and of ``set_metric_names`` (features used as they are), and PED-ANOVA's
+    note that it looks for low ``target`` values (:func:`_importance`'s target is the negated score, for that)."""
+    optuna = _optuna()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
+        warnings.filterwarnings("ignore", message=r".*low `target` values")
+        yield
+
+
+class _NoInterruptLogs(logging.Filter):
+    """Drops Optuna's "Trial N failed ... KeyboardInterrupt()" record with its traceback, and the "Trial N failed with
+    value None." that follows it: an interrupted trial is marked failed and retried on resume, and the command says
+    so in its one line."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.cut: str | None = None
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        exc = record.exc_info[0] if record.exc_info else None
+        text = record.getMessage()
+        if (exc is not None and issubclass(exc, KeyboardInterrupt)) or "KeyboardInterrupt" in text:
+            self.cut = text.split(" failed", 1)[0]  # "Trial N"
+            return False
+        return not (self.cut is not None and text.startswith(f"{self.cut} failed with value"))
+
+
+@contextlib.contextmanager
+def _quiet_interrupts():
+    log = logging.getLogger("optuna.study._optimize")
+    quiet = _NoInterruptLogs()
+    log.addFilter(quiet)
+    try:
+        yield
+    finally:
+        log.removeFilter(quiet)
+
+
 def open_study(spec: StudySpec, create: bool = True):
-    """Create or load the study; a resumed or joined study must have been made with the same settings."""
+    """Create or load the study; a resumed or joined study must have been made with the same settings. A new study's
+    first trial is Table 1's design (enqueued before the settings are stored, so that a study cut between the two
+    still gets it)."""
     optuna = _optuna()
     spec.out.mkdir(parents=True, exist_ok=True)
     storage = make_storage(spec.storage, spec.out)
-    sampler = (optuna.samplers.TPESampler(seed=spec.seed, multivariate=True, group=True, n_startup_trials=24)
-               if spec.sampler == "tpe" else optuna.samplers.NSGAIISampler(seed=spec.seed, population_size=24))
+    with _knowingly():
+        sampler = (optuna.samplers.TPESampler(seed=spec.seed, multivariate=True, group=True, n_startup_trials=24)
+                   if spec.sampler == "tpe" else optuna.samplers.NSGAIISampler(seed=spec.seed, population_size=24))
     try:
         study = optuna.create_study(study_name=spec.name, storage=storage, sampler=sampler, load_if_exists=create,
                                     directions=["maximize"] * 3)
@@ -168,10 +404,11 @@ def open_study(spec: StudySpec, create: bool = True):
     want = json.loads(json.dumps(spec.settings()))
     have = study.user_attrs.get("settings")
     if have is None:
-        study.set_user_attr("settings", want)
-        study.set_metric_names(["blind force-controlled", "blind position-controlled", "worst under error"])
-        if not study.trials:
+        if not any(t.user_attrs.get("table1") for t in study.get_trials(deepcopy=False)):
             study.enqueue_trial(table1_design(), user_attrs={"table1": True})
+        with _knowingly():
+            study.set_metric_names(["blind force-controlled", "blind position-controlled", "worst under error"])
+        study.set_user_attr("settings", want)
     elif have != want:
         diff = {k: (have.get(k), want.get(k)) for k in want if have.get(k) != want.get(k)}
         raise ValueError(f"study {spec.name!r} in {spec.storage or spec.out / 'study.db'} was made with other "
@@ -179,23 +416,110 @@ def open_study(spec: StudySpec, create: bool = True):
     return study
 
 
-def _finished(study) -> int:
-    import optuna
+_FINISHED = ("COMPLETE", "PRUNED")
+"""The trial states a study counts (a design scored, or refused by the model); a failed trial is retried."""
 
-    return sum(t.state in (optuna.trial.TrialState.COMPLETE, optuna.trial.TrialState.PRUNED) for t in study.trials)
+ORPHAN_S = 10.0
+"""A running trial that names no process this long after its start is an orphan (seconds): its process died
+between Optuna's creating it and the objective's first line, which names the process within milliseconds."""
+
+
+def _finished(study) -> int:
+    return sum(t.state.name in _FINISHED for t in study.get_trials(deepcopy=False))
+
+
+def _waiting(study) -> int:
+    return sum(t.state.name == "WAITING" for t in study.get_trials(deepcopy=False))
+
+
+def fail_trials_of(study, pid: int, cause: str) -> list[int]:
+    """Mark failed the trials that the process ``pid`` of this host left running (it died, or was interrupted
+    before Optuna could say so), each with its ``failed`` cause; returns their numbers."""
+    optuna = _optuna()
+    name = _worker_name(pid)
+    failed = []
+    for t in study.get_trials(deepcopy=False, states=(optuna.trial.TrialState.RUNNING,)):
+        if t.user_attrs.get("worker") == name:
+            _fail(study, t, cause)
+            failed.append(t.number)
+    return failed
+
+
+def _fail(study, frozen, cause: str) -> None:
+    optuna = _optuna()
+    try:
+        optuna.trial.Trial(study, frozen._trial_id).set_user_attr("failed", cause)
+        study.tell(frozen.number, state=optuna.trial.TrialState.FAIL, skip_if_finished=True)
+    except (RuntimeError, ValueError):  # it ended meanwhile (a worker elsewhere finished it): as it ended
+        pass
+
+
+def _orphans(study, now: datetime.datetime) -> tuple[list, float]:
+    """The running trials whose process is gone (a process of this host, dead; or none named :data:`ORPHAN_S` after
+    the start), and how long to wait before a younger unnamed one can be judged (seconds)."""
+    from pneunet_env.locks import pid_alive
+
+    optuna = _optuna()
+    host = socket.gethostname()
+    out, wait = [], 0.0
+    for t in study.get_trials(deepcopy=False, states=(optuna.trial.TrialState.RUNNING,)):
+        worker = t.user_attrs.get("worker")
+        if isinstance(worker, str):
+            where, _, pid = worker.rpartition(":")
+            if where == host and pid.isdigit() and not pid_alive(int(pid)):
+                out.append(t)
+        elif t.datetime_start is not None:
+            age = (now - t.datetime_start).total_seconds()
+            if age >= ORPHAN_S:
+                out.append(t)
+            else:
+                wait = max(wait, ORPHAN_S - age)
+    return out, wait
+
+
+def mend(study) -> dict[str, list[int]]:
+    """Before a study's workers start (in the command that runs them, not in each worker): the trials that a dead
+    process left running are marked failed; every failed trial not yet retried is enqueued again, with its parameters
+    (Table 1's as Table 1: the reference every design is compared with), to run before any new design; and Table 1 is
+    enqueued if the study lacks it. Nothing is counted twice (a failed trial counts for nothing; its retry counts
+    once) and nothing is lost. Returns ``{"orphans": [...], "retried": [...]}``, trial numbers."""
+    optuna = _optuna()
+    orphans, wait = _orphans(study, datetime.datetime.now())
+    if wait:  # a trial that names no process yet, started moments ago: judged once it could have named one
+        time.sleep(wait)
+        orphans, _ = _orphans(study, datetime.datetime.now())
+    for t in orphans:
+        _fail(study, t, "its process ended while it ran")
+    trials = study.get_trials(deepcopy=False)
+    retried = {t.user_attrs.get("retry_of") for t in trials}
+    again = []
+    for t in trials:
+        if t.state is optuna.trial.TrialState.FAIL and t.number not in retried:
+            table1 = bool(t.user_attrs.get("table1"))
+            params = table1_design() if table1 else {**t.system_attrs.get("fixed_params", {}), **t.params}
+            study.enqueue_trial(params, user_attrs={"retry_of": t.number, **({"table1": True} if table1 else {})})
+            again.append(t.number)
+    if not any(t.user_attrs.get("table1") for t in trials):
+        study.enqueue_trial(table1_design(), user_attrs={"table1": True})
+    return {"orphans": [t.number for t in orphans], "retried": again}
 
 
 def work(spec: StudySpec, parallel: bool | None = None, progress: bool | None = None) -> int:
-    """Run trials until the study has ``spec.trials`` finished ones (complete or refused); returns how many this
-    process ran. Any number of processes, here or on other machines, may do this on one study at once."""
-    optuna = _optuna()
+    """Run trials until the study has ``spec.trials`` finished ones (complete or refused) and no trial waits (a
+    failed trial's retry, Table 1: run even if the count is reached); returns how many this process ran. Any number
+    of processes, here or on other machines, may do this on one study at once.
+
+    Ctrl-C: the trial it cut is marked failed (Optuna's log of it is not printed), and ``KeyboardInterrupt``
+    propagates; :func:`mend` retries the trial when the study is run again. A Ctrl-C cuts only a design's evaluation,
+    never Optuna's writes to the storage (:class:`_Interrupts`)."""
+    _optuna()
     from agents.batch import episode_seeds
     from pneunet_env.progress import progress as progress_bar
 
     study = open_study(spec)
     seeds = episode_seeds(spec.objects, spec.seed)
     reference = reference_regimes(seeds, spec.base_config())
-    left = spec.trials - _finished(study)
+    left = max(spec.trials - _finished(study), _waiting(study))
     if left <= 0:
         return 0
     bar = progress_bar(total=left, desc=f"design {spec.name}", unit="design", enabled=progress)
@@ -205,33 +529,119 @@ def work(spec: StudySpec, parallel: bool | None = None, progress: bool | None = 
         nonlocal ran
         ran += 1
         bar.update()
+        if _finished(study) >= spec.trials and not _waiting(study):
+            study.stop()
 
-    stop = optuna.study.MaxTrialsCallback(spec.trials, states=(optuna.trial.TrialState.COMPLETE,
-                                                               optuna.trial.TrialState.PRUNED))
-    study.optimize(_objective(spec, seeds, reference, parallel), callbacks=[stop, tick], gc_after_trial=False)
-    bar.close()
+    try:
+        with _quiet_interrupts(), _knowingly(), _Interrupts() as interrupts:
+            study.optimize(_objective(spec, seeds, reference, parallel, interrupts), callbacks=[tick],
+                           gc_after_trial=False)
+    except KeyboardInterrupt as exc:
+        _end_session(study)  # a transaction the interrupt cut, rolled back: its lock on the database goes
+        with contextlib.suppress(Exception):  # a trial the interrupt cut before Optuna could mark it
+            fail_trials_of(study, os.getpid(), "interrupted")
+        raise KeyboardInterrupt(*exc.args) from None
+    finally:
+        bar.close()
     return ran
 
 
-def _worker(spec: StudySpec) -> int:  # a --jobs process: one numba thread, no bar
+def _worker(job: tuple[StudySpec, int]) -> int:  # a --jobs process: one numba thread, no bar
+    spec, index = job
+    if index:  # the trials that wait (Table 1, the retries) are worker 0's: on SQLite two processes can both take
+        study = open_study(spec)  # one waiting trial (it has no row locks) and run it twice
+        while _waiting(study):
+            time.sleep(0.2)
     return work(spec, parallel=False, progress=False)
 
 
 def run_study(spec: StudySpec, progress: bool | None = None, log=print) -> dict[str, Any]:
     """Run (or resume, or join) the study to ``spec.trials`` finished trials with ``spec.jobs`` processes, then
-    report: the best designs re-scored on held-out objects, and every output file."""
-    t0 = time.perf_counter()
-    open_study(spec)  # checked (and created) once, before any worker starts
-    if spec.jobs == 1:
-        work(spec, progress=progress)
-    else:
-        import multiprocessing as mp
+    report: the best designs re-scored on held-out objects, and every output file.
 
-        ctx = mp.get_context("spawn")  # fresh interpreters: no numba or SQLite state forked
-        with ctx.Pool(spec.jobs) as pool:
-            pool.map(_worker, [spec] * spec.jobs)
+    First the study is mended (:func:`mend`: what a dead or interrupted process left is failed and retried). With
+    ``--jobs``, the workers run under :func:`agents.workers.run_jobs`: a worker that dies is noticed at once, the
+    trial it ran is marked failed, the other workers are stopped as Ctrl-C stops them (their trials marked failed
+    too), and a ``SystemExit`` says so in one line; the same command retries them all. Ctrl-C: ``KeyboardInterrupt``
+    with a note naming the trials to be retried."""
+    t0 = time.perf_counter()
+    study = open_study(spec)  # checked (and created) once, before any worker starts
+    mended = mend(study)
+    if mended["retried"]:
+        log(f"retrying trial(s) {', '.join(map(str, mended['retried']))} (failed or cut short before)")
+    if spec.jobs == 1:
+        trials = study.get_trials(deepcopy=False)
+        before, failed = _running(trials), {t.number for t in trials if t.state.name == "FAIL"}
+        try:
+            work(spec, progress=progress)
+        except KeyboardInterrupt:
+            _fail_unnamed(study, before)
+            cut = [t.number for t in study.get_trials(deepcopy=False) if t.state.name == "FAIL"
+                   and t.number not in failed]
+            raise KeyboardInterrupt(_retry_note(cut)) from None
+    else:
+        _work_in_processes(spec, study)
     search_s = time.perf_counter() - t0
     return report(spec, search_s, progress, log)
+
+
+def _running(trials) -> set[int]:
+    return {t.number for t in trials if t.state.name == "RUNNING"}
+
+
+def _fail_unnamed(study, before: set[int]) -> None:
+    """Every process of this run has ended: a trial it started (not running ``before`` it) and left running without
+    a process named was cut between Optuna's starting it and the objective's first line; it is marked failed."""
+    optuna = _optuna()
+    for t in study.get_trials(deepcopy=False, states=(optuna.trial.TrialState.RUNNING,)):
+        if t.number not in before and not isinstance(t.user_attrs.get("worker"), str):
+            _fail(study, t, "its process ended while it ran")
+
+
+def _retry_note(trials: list[int]) -> str:
+    if not trials:
+        return "(no trial was cut): the same command goes on"
+    return (f"(trial{'s' if len(trials) > 1 else ''} {', '.join(map(str, trials))} marked failed): the same command "
+            "retries and goes on")
+
+
+def _work_in_processes(spec: StudySpec, study) -> None:
+    """``spec.jobs`` worker processes on ``study`` (see :func:`run_study`)."""
+    from agents.workers import run_jobs
+
+    failed: dict[int, list[int]] = {}
+
+    def on_end(out) -> bool:
+        cause = "interrupted" if out.state == "interrupted" else (out.cause() if out.state == "died" else
+                                                                  f"its worker ended: {out.state}")
+        failed[out.index] = fail_trials_of(study, out.pid, cause) if out.pid is not None else []
+        return out.state == "done"
+
+    trials = study.get_trials(deepcopy=False)
+    before, was_failed = _running(trials), {t.number for t in trials if t.state.name == "FAIL"}
+    ran = run_jobs(_worker, [(spec, k) for k in range(spec.jobs)], spec.jobs, on_end=on_end,
+                   preload=("agents.design.study", "optuna"))
+    if ran.clean:
+        return
+    _fail_unnamed(study, before)
+    cut = sorted(t.number for t in study.get_trials(deepcopy=False) if t.state.name == "FAIL"
+                 and t.number not in was_failed)
+    died = [o for o in ran.outcomes if o.state == "died"]
+    errors = [o for o in ran.outcomes if o.state == "error"]
+    if ran.interrupted or not (died or errors):
+        raise KeyboardInterrupt(_retry_note(cut))
+
+    def during(o) -> str:
+        return f" during trial {', '.join(map(str, failed[o.index]))}" if failed.get(o.index) else ""
+
+    parts = [f"design worker {o.index}: {o.cause()}{during(o)}" for o in died]
+    parts += [f"design worker {o.index} failed: {type(o.value).__name__}: {o.value}" for o in errors]
+    if spec.jobs > len(died) + len(errors):
+        parts.append("the other workers were stopped")
+    what = (f"trial{'s' if len(cut) > 1 else ''} {', '.join(map(str, cut))} marked failed" if cut else
+            "no trial was cut")
+    raise SystemExit(f"pneunet-grasp design: {'; '.join(p for p in parts if p)} ({what}): run the same command "
+                     "again to retry and go on")
 
 
 def _trial_scores(study) -> list[tuple[Any, DesignScore]]:
@@ -262,10 +672,13 @@ def report(spec: StudySpec, search_s: float = math.nan, progress: bool | None = 
 
     study = open_study(spec)
     scored = _trial_scores(study)
+    table1 = next((ts for ts in scored if ts[0].user_attrs.get("table1")), None)
+    if table1 is None and not any(t.user_attrs.get("table1") and t.state.name == "PRUNED" for t in study.trials):
+        raise ValueError(f"study {spec.name!r} has no finished Table 1 design (the reference every design is compared "
+                         "with: it failed or has not run yet); run the study (without --report) to run it")
     if not scored:
         raise ValueError(f"study {spec.name!r} has no finished design yet")
     ranked = sorted(scored, key=lambda ts: design_rank(ts[1]), reverse=True)
-    table1 = next((ts for ts in scored if ts[0].user_attrs.get("table1")), None)
     top = []
     seen: set[str] = set()
     for t, s in ranked:
@@ -326,9 +739,10 @@ def _importance(study) -> dict[str, float]:
     if len(done) < 8:
         return {}
     try:
-        imp = optuna.importance.get_param_importances(
-            study, target=lambda t: -float(t.user_attrs["score"]["score"]),  # PED-ANOVA looks for low values
-            evaluator=optuna.importance.PedAnovaImportanceEvaluator())
+        with _knowingly():  # PED-ANOVA's note that it looks for low values: the target is negated for that
+            imp = optuna.importance.get_param_importances(
+                study, target=lambda t: -float(t.user_attrs["score"]["score"]),
+                evaluator=optuna.importance.PedAnovaImportanceEvaluator())
     except (RuntimeError, ValueError, ImportError):  # too few distinct trials
         return {}
     return {k: float(v) for k, v in imp.items()}

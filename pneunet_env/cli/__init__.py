@@ -12,6 +12,11 @@ value its ``type=`` refuses: :mod:`pneunet_env.arguments` checks numbers and out
 work), for a ``ValueError``, ``TypeError`` or ``OverflowError`` (``int(inf)``) a command raises from bad input, and
 for a command's ``SystemExit`` with a message. Ctrl-C ends a command with one line, ``pneunet-grasp CMD:
 interrupted``, and exit status 130; a reader of stdout that goes away (``| head``) with exit status 141, quietly.
+An optional package that a command needs and that is not installed is named in one line with the extra that installs
+it (:mod:`pneunet_env.extras`), exit status 2. A warning is one line too, ``pneunet-grasp CMD: warning: MESSAGE``
+(:func:`pneunet_env.extras.warn`), and the command goes on. The first run after an install says, once, that numba is
+compiling the physics (:data:`COMPILE_NOTICE`, where stderr is a terminal). Options are never abbreviated
+(``--object`` is not ``--objects``).
 Set the environment variable ``PNEUNET_DEBUG=1`` to see the full traceback of an error or an interruption instead
 (for developers).
 """
@@ -19,12 +24,13 @@ Set the environment variable ``PNEUNET_DEBUG=1`` to see the full traceback of an
 from __future__ import annotations
 
 import argparse
+import contextlib
 import difflib
 import importlib
 import os
 import sys
 
-from pneunet_env.extras import PROG, require_extra
+from pneunet_env.extras import PROG, missing_extra, missing_line, require_extra
 from pneunet_env.files import deferred_interrupt
 
 __all__ = ["COMMANDS", "DEBUG_ENV", "GROUPS", "CommandError", "main", "require_extra"]
@@ -39,6 +45,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "bench solvers": ("pneunet_env.bench.solvers", "solver study: speed vs accuracy, stability map"),
     "bench design": ("agents.bench_design", "what a design study costs: one design evaluation, and the batched "
                      "search against the episode loop"),
+    "bench gpu": ("pneunet_env.bench.gpu", "the fused step's CUDA kernel on a GPU: agreement with the CPU, env-steps/s "
+                  "at N = 2^16..2^22 (JSON, PNG; extra: gpu)"),
     "bench render": ("pneunet_env.bench.render_speed", "rgb_array frames/s (step + render) against CartPole"),
     "bench train": ("agents.bench_train", "PPO training steps/s on the env (the shipped config) against the same PPO "
                     "on CartPole"),
@@ -76,7 +84,13 @@ class CommandError(SystemExit):
 
 
 class _Parser(argparse.ArgumentParser):
-    """argparse, with its errors on one line: ``pneunet-grasp CMD: error: argument --x: MESSAGE``, exit status 2."""
+    """argparse, with its errors on one line: ``pneunet-grasp CMD: error: argument --x: MESSAGE``, exit status 2; and
+    without argparse's prefix matching (``allow_abbrev=False``): ``demo --object 50`` is an unknown option, not
+    ``--objects 50``."""
+
+    def __init__(self, *args, **kwargs) -> None:
+        kwargs.setdefault("allow_abbrev", False)
+        super().__init__(*args, **kwargs)
 
     def error(self, message: str):  # type: ignore[override]
         _fail(self.prog, message)
@@ -95,8 +109,11 @@ def _one_line(message: str, prog: str) -> str:
 
 
 def _fail(prog: str, message: str):
-    """Print ``PROG: error: MESSAGE`` (one line) and raise :class:`CommandError` (exit status 2)."""
-    line = _one_line(message, prog)
+    """Print ``PROG: error: MESSAGE`` (one line, its over-long values cut: :func:`pneunet_env.yamlio.cut_message`)
+    and raise :class:`CommandError` (exit status 2)."""
+    from pneunet_env.yamlio import cut_message
+
+    line = cut_message(_one_line(message, prog))
     print(f"{prog}: error: {line}", file=sys.stderr)
     raise CommandError(line)
 
@@ -149,7 +166,24 @@ def _error(message: str, usage: str) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run ``pneunet-grasp ARGV``; return the exit status (``--help`` and argument errors raise ``SystemExit``)."""
+    """Run ``pneunet-grasp ARGV``; return the exit status (``--help`` and argument errors raise ``SystemExit``).
+
+    A reader of stdout that goes away (``pneunet-grasp --help | head -1``) ends it quietly with status 141, wherever
+    the output was cut: stdout is flushed here, inside the handler, not at the interpreter's exit (Python's recipe,
+    "Note on SIGPIPE" in the :mod:`signal` docs)."""
+    try:
+        try:
+            return _main(argv)
+        finally:  # what is still buffered: written here, where a closed pipe is caught, not at the interpreter's exit
+            with contextlib.suppress(AttributeError, ValueError):  # no stdout, or a closed one: nothing to write
+                sys.stdout.flush()
+    except BrokenPipeError:
+        if not _stdout_closed():
+            raise  # some other pipe: a real error
+        return 141  # 128 + SIGPIPE, as a Unix command does
+
+
+def _main(argv: list[str] | None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     if not argv or argv[0] in _HELP:
         print(_usage())
@@ -185,8 +219,9 @@ def main(argv: list[str] | None = None) -> int:
         if exc.name and module_name.startswith(exc.name):
             print(f"{PROG}: command {name!r} is not available in this version", file=sys.stderr)
             return 2
-        missing = (f"{PROG} {name}: missing dependency {exc.name!r}; install the package's extras "
-                   "(see README)")
+        known = missing_extra(exc)
+        missing = (missing_line(name, known[0], known[1]) if known is not None else
+                   f"{PROG} {name}: missing dependency {exc.name!r}; install the package's extras (see README)")
         if any(a in _HELP for a in args_in):  # still answer --help, without the options it cannot list
             print(f"usage: {PROG} {name} [options]\n\n{help_}\n\n{missing}")
             return 0
@@ -201,7 +236,14 @@ def main(argv: list[str] | None = None) -> int:
         module.add_arguments(parser)
         args = parser.parse_args(args_in)
         _resolve_config(args, name)
-        return int(module.run(args) or 0)
+        with _compile_notice(prog):
+            return int(module.run(args) or 0)
+    except ModuleNotFoundError as exc:  # an optional package the command imports as it goes: one line naming its extra
+        known = None if _debug() else missing_extra(exc)
+        if known is None:
+            raise
+        print(missing_line(name, *known), file=sys.stderr)
+        return 2
     except BrokenPipeError:
         if not _stdout_closed():
             raise  # some other pipe: a real error
@@ -218,6 +260,19 @@ def main(argv: list[str] | None = None) -> int:
         if _debug():
             raise
         _fail(prog, str(exc) or type(exc).__name__)
+    except OSError as exc:  # a full disk, a quota, a read-only file system, a too-long path: one line naming the path
+        from pneunet_env.arguments import os_error_line
+
+        line = None if _debug() else os_error_line(exc)
+        if line is None:
+            if not _debug() and interrupt_seen():
+                return _interrupted(prog, "")
+            raise
+        _fail(prog, line)
+    except Exception:
+        if not _debug() and interrupt_seen():  # the same for any error (numba's compiler, cut by a Ctrl-C, raises
+            return _interrupted(prog, "")  # RuntimeError('no compiled object yet ...')): an interrupt, not a bug
+        raise
     except CommandError:
         raise
     except SystemExit as exc:
@@ -226,6 +281,53 @@ def main(argv: list[str] | None = None) -> int:
         _fail(prog, str(exc.code))
     finally:
         stop_noting()
+
+
+COMPILE_NOTICE = ("compiling the physics (numba; once per install, about 10-30 s; later runs load it from numba's "
+                  "cache)...")
+"""What a command says, once, on stderr, when numba compiles one of the package's disk-cached functions: the first run
+after an install (or an upgrade, or on another CPU), when numba's cache is cold (:func:`_compile_notice`)."""
+
+
+def _disk_cached(dispatcher) -> bool:
+    """Whether numba keeps ``dispatcher``'s compiled code on disk (it was made with ``cache=True``)."""
+    cache = getattr(dispatcher, "_cache", None)
+    return cache is not None and type(cache).__name__ != "NullCache"
+
+
+def _compile_notice(prog: str):
+    """A context in which numba's first compilation of a disk-cached function (``cache=True``: the package's step,
+    solver and draws) prints ``PROG: COMPILE_NOTICE`` on stderr, once, so that a first run's half minute of compiling
+    is not silent. numba raises its ``numba:compile`` event only where its cache had nothing to load (a cold cache),
+    and a function compiled in every process (no disk cache) is passed over: a warm run says nothing. Shown where a
+    progress bar would be (:func:`pneunet_env.progress.progress_enabled`: stderr is a terminal), so that a log or a
+    test that reads stderr gets the same lines on a cold cache as on a warm one; nothing where numba is not imported
+    (not installed, or disabled: ``PNEUNET_DISABLE_NUMBA``)."""
+    from pneunet_env.physics._jit import HAVE_NUMBA
+    from pneunet_env.progress import progress_enabled
+
+    if not HAVE_NUMBA or "numba" not in sys.modules or not progress_enabled(None):
+        return contextlib.nullcontext()
+    try:
+        from numba.core import event
+    except ImportError:  # pragma: no cover - numba without its event API (older than 0.53; the floor is newer)
+        return contextlib.nullcontext()
+
+    class Notice(event.Listener):
+        said = False
+
+        def on_start(self, ev) -> None:
+            data = ev.data if isinstance(ev.data, dict) else {}
+            if not self.said and _disk_cached(data.get("dispatcher")):
+                self.said = True
+                from pneunet_env.extras import _line
+
+                _line(f"{prog}: {COMPILE_NOTICE}")
+
+        def on_end(self, ev) -> None:
+            pass
+
+    return event.install_listener("numba:compile", Notice())
 
 
 _NOT_NOTING = (lambda: False), (lambda: None)
@@ -293,6 +395,9 @@ def _resolve_config(args: argparse.Namespace, name: str) -> None:
         return
     if os.path.isdir(config):
         raise ValueError(f"--config {config!r} is a folder, not a config file")
+    from pneunet_env.arguments import check_input_path
+
+    check_input_path(config, "--config")  # a FIFO, a device, a too-long path: refused by name, not "no such file"
     from agents.resources import is_name, resolve_config
 
     if is_name(config):

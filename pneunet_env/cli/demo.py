@@ -14,7 +14,9 @@ k})``, and runs each policy on the same objects. These four options belong to th
 to the default task: given to the other task, each is an error (exit status 2) that names the ``--task`` it needs.
 
 * ``best-ramp``: the linear pressure ramp found by ``python -m agents.search`` (``agents/best_ramp.json``): one
-  blind schedule, tuned once over the object distribution, the same for every object;
+  blind schedule, tuned once over the object distribution, the same for every object (the output names the file
+  and what it was tuned on; a config whose objects no shipped schedule was tuned for gets a warning on stderr
+  with the ``pneunet-grasp search`` command that tunes one for them);
 * ``oracle``: knows the object and steps to the best constant pressure for it (:mod:`agents.oracle`): the
   feasibility ceiling, not a blind policy;
 * ``rigid``: a rigid, position-controlled gripper closing to a fixed indentation, tuned like best-ramp
@@ -120,7 +122,7 @@ def run(args: argparse.Namespace) -> int:
         usage_error,
     )
     from agents.oracle import feasible_stiffness
-    from agents.policies import make_policy
+    from agents.policies import make_policy, tuned_schedules_text, warn_untuned
     from pneunet_env import PAPER_TASK
     from pneunet_env.config import load_config
     from pneunet_env.objects import stiffness_per_modulus
@@ -143,6 +145,9 @@ def run(args: argparse.Namespace) -> int:
         entries = [make_policy(s, cfg, config_path=args.config) for s in specs]
     except ValueError as exc:
         raise SystemExit(f"pneunet-grasp demo: {exc}") from None
+    # the paper's task is its settings on top of --config: a search for these objects needs them too
+    paper_sets = [f"{k}={'null' if v is None else v}" for k, v in PAPER_TASK.items()] if args.task == "paper" else []
+    warn_untuned(PROG, entries, args.config, paper_sets + list(args.overrides))
     if args.task == "default":
         return _run_distribution(args, cfg, entries)
     edges = np.logspace(math.log10(args.k_min), math.log10(args.k_max), args.bins + 1)
@@ -200,6 +205,8 @@ def run(args: argparse.Namespace) -> int:
               f"[{e.label}]")
     if others:
         print("(other policies' columns: success, and the failures as d = damaged, s = slipped)")
+    if tuned := tuned_schedules_text(entries):
+        print(tuned)
     if cfg.task.damage_rule == "crush_fraction" and not cfg.objects.from_catalogue:  # the bound assumes this rule
         k_feas = feasible_stiffness(cfg)
         print(f"\nBelow k~ = {k_feas:.2g} (mu_obj = {k_feas / unit_mu:.3g} kPa) no state of any gripper both holds "
@@ -253,6 +260,7 @@ def _run_distribution(args: argparse.Namespace, cfg, entries) -> int:
         slip_rule_text,
         task_description,
     )
+    from agents.policies import tuned_schedules_text
     from pneunet_env.physics.regimes import REGIMES
 
     short = _short_names(e.name for e in entries)
@@ -295,6 +303,8 @@ def _run_distribution(args: argparse.Namespace, cfg, entries) -> int:
             line += f"  {_rate(float(ok[m].mean())):>{w}}"
         print(line)
     print("\n" + "; ".join(f"{short[e.name]}: {e.label}" for e in entries))
+    if tuned := tuned_schedules_text(entries):
+        print(tuned)
     print(f"\n{len(entries) * len(seeds)} episodes in {elapsed:.1f} s")
     if args.json is not None:
         atomic_write_text(args.json, json.dumps({"task": "default", "use_case": cfg.objects.use_case,

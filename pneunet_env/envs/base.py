@@ -17,7 +17,7 @@ from typing import Any, ClassVar
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
-from gymnasium.error import ResetNeeded
+from gymnasium.error import ClosedEnvironmentError, ResetNeeded
 
 from pneunet_env import task
 from pneunet_env.config import EnvConfig, load_config
@@ -33,12 +33,16 @@ class SingleGraspEnv(gym.Env):
 
     Stepping before ``reset`` or past an episode's end raises ``gymnasium.error.ResetNeeded``; ``info["is_success"]``
     (held to the end, intact) is added on an episode's last step. With ``render_mode="human"`` every ``reset`` and
-    ``step`` calls :meth:`render`.
+    ``step`` calls :meth:`render`. After :meth:`close`, ``step``, ``reset`` and ``render`` raise
+    ``gymnasium.error.ClosedEnvironmentError`` (as Gymnasium's vector envs do: a closed env is not reopened; make a
+    new one); ``close`` again does nothing.
     """
 
     env_id: ClassVar[str] = ""
     """The registered id, for messages."""
     metadata: ClassVar[dict[str, Any]] = {"render_modes": []}
+    closed: bool = False
+    """Whether :meth:`close` was called (Gymnasium's vector envs' attribute, here on a single env too)."""
 
     def __init__(self, render_mode: str | None, config: Any, info_level: str, overrides: dict[str, Any]) -> None:
         modes = self.metadata["render_modes"]
@@ -111,9 +115,22 @@ class SingleGraspEnv(gym.Env):
         raise NotImplementedError
 
     # ---- Gymnasium API -----------------------------------------------------------------------------
+    def _check_open(self, what: str) -> None:
+        """``ClosedEnvironmentError`` naming ``what`` once the env is closed."""
+        if self.closed:
+            raise ClosedEnvironmentError(f"{type(self).__name__}.{what}() after close(): a closed env is not "
+                                         f"reopened; make a new one")
+
+    def close(self) -> None:
+        """Close the env: from now on ``step``, ``reset`` and ``render`` raise ``ClosedEnvironmentError``. Closing
+        again does nothing."""
+        self.closed = True
+        super().close()
+
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         """A new episode: an object from ``self.np_random`` (``options`` pins its properties:
         :data:`pneunet_env.task.PIN_KEYS`), the command 0 and the actuator at rest."""
+        self._check_open("reset")
         super().reset(seed=seed)
         self._ended = False
         if options is not None and not isinstance(options, dict):
@@ -131,6 +148,7 @@ class SingleGraspEnv(gym.Env):
 
     def step(self, action):
         """One step of :func:`pneunet_env.task.step`. A torch tensor is read as its value (detached)."""
+        self._check_open("step")
         if self._record is None:
             raise ResetNeeded("call reset() before step()")
         if self._ended:

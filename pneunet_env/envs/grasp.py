@@ -254,6 +254,7 @@ class PneuNetGraspEnv(SingleGraspEnv):
 
     # ---- rendering ---------------------------------------------------------------------------------
     def render(self):
+        self._check_open("render")
         if self.render_mode is None:
             gym.logger.warn(
                 "You are calling render method without specifying any render mode. "

@@ -30,11 +30,11 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
-from gymnasium.error import ResetNeeded
+from gymnasium.error import ClosedEnvironmentError, ResetNeeded
 from gymnasium.vector import AutoresetMode, VectorEnv
 from gymnasium.vector.utils import batch_space
 
-from pneunet_env import task
+from pneunet_env import fused_cuda, task
 from pneunet_env.config import EnvConfig, load_config
 from pneunet_env.envs.grasp import observation_space
 from pneunet_env.envs.streams import PCG64Streams
@@ -246,6 +246,10 @@ class PneuNetGraspVectorEnv(VectorEnv):
       bit :func:`pneunet_env.task.step`'s result with ``free_table=False`` (with the free actuator's table, the
       default, a step that touches nothing is the same minimum to the solver's tolerance, in 1-2 evaluations);
       ``False``: the array step around the batched solve (no table).
+    * ``kernel``: torch only: the fused step as one CUDA kernel (:mod:`pneunet_env.fused_cuda`, the fused loop's own
+      code on the device; the same results as ``fused`` to round-off), the default (``None``) on a CUDA device where
+      numba-cuda is installed (``pip install pneunet-env[gpu]``); ``False``: the masked solver round by round (as
+      without numba-cuda, and as with ``compile=True``); ``True`` where it cannot run raises ``ValueError``.
     * ``info_keys``: the info keys to build each step (``None``: every key of ``info_level``; ``()``: none, the
       fastest, for training loops that read nothing from the info). ``final_obs`` and ``final_info`` (with
       ``is_success``) are always given where episodes end.
@@ -297,6 +301,7 @@ class PneuNetGraspVectorEnv(VectorEnv):
         compile: bool = False,
         num_threads: int | None = None,
         fused: bool | None = None,
+        kernel: bool | None = None,
         info_keys: Sequence[str] | None = None,
         **overrides: Any,
     ) -> None:
@@ -373,11 +378,23 @@ class PneuNetGraspVectorEnv(VectorEnv):
             raise ValueError(f"fused must be True (numba backend only) or False, got {fused!r} with "
                              f"backend={backend!r}")
         self.fused = fused
+        if kernel is not None and (not isinstance(kernel, bool) or backend != "torch"):
+            raise ValueError(f"kernel must be True, False or None (backend='torch' only), got {kernel!r} with "
+                             f"backend={backend!r}")
+        can_kernel = backend == "torch" and fused_cuda.kernel_available(self.device)
+        if kernel and (not can_kernel or compile):
+            raise ValueError(f"kernel=True needs numba-cuda (pip install pneunet-env[gpu]) and a CUDA device, and "
+                             f"no compile, got device={str(self.device)!r}, compile={compile!r}")
+        self.kernel = bool(kernel) if kernel is not None else \
+            can_kernel and not compile and self.device.type == "cuda"
+        """Whether the step is the fused loop's CUDA kernel (:mod:`pneunet_env.fused_cuda`)."""
         self._compile = compile
         self._num_threads = num_threads
         if fused:
             # the energy evaluation each env's last step ended on: the next step's first (fused.fused_step)
             self._ev_cache = new_cache(n)
+        elif self.kernel:  # the same, on the device
+            self._ev_cache = fused_cuda.new_device_cache(n, self.device)
         self._busy = threading.Lock()  # the re-entrancy guard of step/reset: one thread at a time
         self._build_backend()
         self.single_action_space = spaces.Box(-1.0, 1.0, (1,), np.float32)
@@ -404,7 +421,9 @@ class PneuNetGraspVectorEnv(VectorEnv):
             self._xp = NUMPY
             self._contact = functools.partial(task.newton_contact_batch, backend=self.backend, parallel=self.parallel,
                                               threads=self._num_threads)
-        if self.fused:
+        if self.kernel:
+            self._step_fn = fused_cuda.DeviceStep(self._params, self._ev_cache, self.device)
+        elif self.fused:
             self._step_fn = functools.partial(fused_step, params=self._params, parallel=self.parallel,
                                               threads=self._num_threads, cache=self._ev_cache)
         else:
@@ -434,6 +453,9 @@ class PneuNetGraspVectorEnv(VectorEnv):
         raised anywhere in the step cannot leave it held); a ``RuntimeError`` if a step or reset already runs. (Two
         calls that start at the same instant can both pass the check: the second then waits for the first, one at a
         time still, instead of raising.)"""
+        if self.closed:  # as Gymnasium's AsyncVectorEnv: a closed env is not reopened
+            raise ClosedEnvironmentError(f"{type(self).__name__}.{what}() after close(): a closed env is not "
+                                         f"reopened; make a new one")
         if self._busy.locked():
             raise RuntimeError(f"{type(self).__name__}.{what}() called while another step() or reset() of the same "
                                f"env is running (from another thread, or re-entered): a vector env is stepped by one "
@@ -476,14 +498,16 @@ class PneuNetGraspVectorEnv(VectorEnv):
         observation, the random streams and, for the fused step, its evaluation cache)."""
         s = self._state
         obj = [getattr(s.obj, f.name) for f in dataclasses.fields(s.obj)]
-        arrays = [s.command, *s.eq, *obj, *s.thresholds, *s.task, self._obs, *(self._ev_cache if self.fused else ())]
+        cache = self._ev_cache if self.fused or self.kernel else ()
+        arrays = [s.command, *s.eq, *obj, *s.thresholds, *s.task, self._obs, *cache]
         size = sum(a.element_size() * a.nelement() if is_torch(a) else np.asarray(a).nbytes for a in arrays)
         return int(size) + self._streams.nbytes
 
     # ---- Gymnasium API -----------------------------------------------------------------------------------
     def reset(self, *, seed: int | Sequence[int | None] | None = None, options: dict[str, Any] | None = None):
         """Reset all sub-envs (or those of ``options["reset_mask"]``, which must reset at least one, as Gymnasium's
-        vector envs require); see the class docstring for seeds. One thread at a time (``RuntimeError`` otherwise)."""
+        vector envs require); see the class docstring for seeds. One thread at a time (``RuntimeError`` otherwise).
+        After :meth:`close`: ``gymnasium.error.ClosedEnvironmentError``, as for :meth:`step`."""
         with self._enter("reset"):
             return self._reset(seed, options)
 
@@ -542,7 +566,7 @@ class PneuNetGraspVectorEnv(VectorEnv):
 
     def _forget(self, idx) -> None:
         """Invalidate the fused step's evaluation cache for the sub-envs ``idx`` (all if ``None``) after a reset."""
-        if self.fused:
+        if self.fused or self.kernel:
             self._ev_cache[1][slice(None) if idx is None else idx] = False
 
     def _masked(self, mask, v):
@@ -574,12 +598,15 @@ class PneuNetGraspVectorEnv(VectorEnv):
             self._streams.seed(idx, _seed_words(seed, n)[:, idx])
             super().reset(seed=int(seed))  # Gymnasium's vector-level np_random (not used by this env)
         else:
+            what = f"seed must be None, an int or a list of num_envs={n} ints/None, got {seed!r} ({type(seed).__name__}"
+            if isinstance(seed, (str, bytes, bytearray)):  # not a list of seeds: its length counts characters
+                raise ValueError(what + ")")
             try:
                 seeds = list(seed)
             except TypeError:
-                raise ValueError(f"seed must be None, an int or a list of {n} ints/None, got {seed!r}") from None
+                raise ValueError(what + ")") from None
             if len(seeds) != n:
-                raise ValueError(f"seed must be None, an int or a list of num_envs={n} seeds, got {len(seeds)}")
+                raise ValueError(f"{what} of {len(seeds)})")
             given = np.array([s is not None for s in seeds], dtype=bool)
             if not self._seeded and not given.all():
                 raise ValueError("the first seeding must give a seed for every sub-env (no None)")

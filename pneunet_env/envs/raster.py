@@ -331,8 +331,7 @@ def _palette(state: RenderState) -> np.ndarray:
     """The float32 colour of each label, as the layers' paint would leave it."""
     pal = _PALETTE.copy()
     pal[_L_OBJECT_EDGE] = C.DAMAGED if state.damaged else C.OBJECT_EDGE
-    crushed_through = state.in_contact and float(state.indentation) > float(state.object_thickness)
-    pal[_L_DASH] = C.DAMAGED if crushed_through else C.OBJECT_EDGE
+    pal[_L_DASH] = C.DAMAGED if state.crushed else C.OBJECT_EDGE
     pf = min(max(float(state.pressure_fraction), 0.0), 1.0)
     pal[_L_CAVITY] = C.CAVITY_LOW + pf * (C.CAVITY_HIGH - C.CAVITY_LOW)
     pal[_L_CAVITY_EDGE] = (1.0 - 0.6) * pal[_L_CAVITY] + 0.6 * C.OUTLINE

@@ -20,8 +20,8 @@ What is drawn:
   rectangle in ``(s, n)``): the stiff PDMS base (dark), the elastomer side walls (radial) and top walls
   (thinned as they stretch, ``h (1+e)^-2``), and the cavities, shaded by pressure;
 * the **object**, a layer of thickness ``H`` on an arc of curvature ``kappa_obj``, concentric with the
-  actuator once in contact and indented by ``delta = 1/kappa_obj - 1/kappa`` (drawn up to ``H``: beyond
-  it the object is crushed through, and only a red film is left on the base); the loaded zone is tinted
+  actuator once in contact and indented by ``delta = 1/kappa_obj - 1/kappa`` (drawn up to ``H``; once
+  crushed, the task's flag by the damage rule in force, a red film on the base); the loaded zone is tinted
   by the damage ratio (the larger of traction over failure traction and indentation over the crush
   depth), solid red once damaged, and the undeformed surface is dashed;
 * the **gauges**: a pressure bar (left), a traction gauge on a log scale from 0.5 Pa to 50 kPa
@@ -125,8 +125,7 @@ def frame_status(state: RenderState) -> str:
     ``"squeezing"`` (in contact, below it) or ``"free"`` (out of contact).
     """
     if state.damaged:
-        crushed = state.in_contact and float(state.indentation) > float(state.crush_indentation)
-        return "crushed" if crushed else "damaged"
+        return "crushed" if state.crushed else "damaged"
     if state.dropped:
         return "slipped"
     if state.in_hold:

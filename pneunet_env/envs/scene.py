@@ -11,8 +11,10 @@ the one physical value, for the label). :class:`SceneGeometry` places the parts:
   ``h_s (1+e_s)^-2``), the top wall (``h_m (1+e_m)^-2`` about ``n = d (1+e_s)``) and the cavities between them;
 * the **object**, a layer of thickness ``H`` below its undeformed surface, an arc of curvature ``kappa_obj``
   concentric with the actuator once in contact and indented by ``delta = 1/kappa_obj - 1/kappa`` (drawn up to
-  ``H``: beyond it the object is crushed through, and only a film is left on the base); the loaded zone is the
-  object under the actuator, and the undeformed surface is drawn (dashed) where the actuator pushed it in.
+  ``H``); the loaded zone is the object under the actuator, and the undeformed surface is drawn (dashed) where the
+  actuator pushed it in. A *crushed* object (:attr:`RenderState.crushed`: the task's flag, by the damage rule in
+  force) is drawn as a film on the base, and its undeformed surface in red; an intact one indented past ``H`` (the
+  ``hoop_strain`` rule allows it) is not.
 
 The picture is symmetric in ``x``: every boundary is a circle (about the centre of curvature, or the object's
 centre) or a radial line, so along a horizontal line at height ``y`` a part covers one interval of ``|x|``, found
@@ -51,7 +53,7 @@ class RenderState(NamedTuple):
     indentation: float  # delta~ (0 out of contact)
     in_contact: bool
     failure_traction: float  # F~ at failure
-    crush_indentation: float  # delta~ at which it is crushed through
+    crush_indentation: float  # delta~ above which it is crushed (the damage rule in force)
     grip_traction: float  # F~ needed to hold it
     damaged: bool
     dropped: bool
@@ -64,6 +66,17 @@ class RenderState(NamedTuple):
     pressure_kpa: float = 0.0
     object_name: str = ""  # a catalogue class; "" names the object by its stiffness
     object_stiffness: float = math.nan  # k~
+
+    @property
+    def crushed(self) -> bool:
+        """The task's *crushed* flag now: in contact and indented past ``crush_indentation``.
+
+        ``crush_indentation`` is the env's own threshold (its state's ``thresholds``, set by the config's
+        ``damage_rule``: ``eps_f / (w kappa_obj)`` for ``hoop_strain``, ``crush_fraction H`` for ``crush_fraction``),
+        compared as :func:`pneunet_env.task.make_rules` compares it, so the picture says crushed exactly when
+        ``info["crushed"]`` does; the object's thickness ``H`` plays no part.
+        """
+        return bool(self.in_contact) and float(self.indentation) > float(self.crush_indentation)
 
 
 def render_state(
@@ -149,7 +162,7 @@ class SceneGeometry:
         self.R_u = 1.0 / float(state.object_curvature) - 0.5 * hb  # its undeformed surface (base's lower face)
         self.H = H = float(state.object_thickness)
         self.delta = delta = max(float(state.indentation), 0.0) if state.in_contact else 0.0
-        self.crushed_through = delta > H
+        self.crushed = state.crushed  # the task's flag (a film on the base), not a rule of the picture's own
         self.delta_draw = min(delta, H)
         self.oy = -0.5 * hb + self.delta_draw - self.R_u
         # the actuator: offsets n of its parts (the top wall thinned as it stretches, the side walls too)
@@ -243,7 +256,7 @@ class SceneParts(NamedTuple):
 
     parts: list[ScenePart]
     zone: int | None  # the loaded zone: the object under the actuator
-    film: int | None  # what is left of a crushed-through object: a film on the base
+    film: int | None  # what is left of a crushed object (the task's flag): a film on the base
     dash: int | None  # the undeformed surface where the actuator pushed the object in
     first_cell: int
 
@@ -299,7 +312,7 @@ def scene_parts(g: SceneGeometry, y: np.ndarray, eps: float) -> SceneParts:
         zone = len(parts)
         parts.append(ScenePart(np.maximum(band_x0, span_x0), np.minimum(np.minimum(band_x1, dent_x0), span_x1),
                                test_zone))
-    if g.crushed_through:  # what is left of the object: a crushed film on the actuator's base
+    if g.crushed:  # crushed (the task's flag): a film on the actuator's base
         film = len(parts)
         parts.append(ScenePart(np.maximum(span_x0, n_film), np.minimum(span_x1, n_low_gt),
                                test_actuator(g.n_film, g.n_low)))

@@ -161,9 +161,13 @@ class PCG64Streams:
         return np.random.Generator(bg)
 
 
+# the array forms' own functions, compiled: globals of the draw, not closure variables (numba keys its disk cache by
+# the pickled closure, and a compiled function pickles differently in every process: the cache would never be hit)
+_MULHI64_JIT, _OUTPUT_JIT = _jit.njit(_mulhi64), _jit.njit(_output)
+
+
 def _make_draw(stamp: int):
     one, zero, mult_hi, mult_lo = np.uint64(1), np.uint64(0), _MULT_HI, _MULT_LO
-    mulhi64, output = _jit.njit(_mulhi64), _jit.njit(_output)  # the array forms' own functions, compiled
 
     def draw(hi_a, lo_a, ihi_a, ilo_a, idx, out):
         # PCG64Streams.random, stream by stream: _lcg_step (its carry as a branch: numba types np.uint64(bool) as
@@ -175,11 +179,11 @@ def _make_draw(stamp: int):
             i = idx[c]
             hi, lo, ihi, ilo = hi_a[i], lo_a[i], ihi_a[i], ilo_a[i]
             for j in range(out.shape[0]):
-                nhi = mulhi64(lo, mult_lo) + lo * mult_hi + hi * mult_lo
+                nhi = _MULHI64_JIT(lo, mult_lo) + lo * mult_hi + hi * mult_lo
                 nlo = lo * mult_lo
                 lo = nlo + ilo
                 hi = nhi + ihi + (one if lo < nlo else zero)
-                out[j, c] = output(hi, lo)
+                out[j, c] = _OUTPUT_JIT(hi, lo)
             hi_a[i] = hi
             lo_a[i] = lo
 

@@ -492,3 +492,39 @@ def test_threads_flag_and_what_export_says_it_copies(tmp_path):
     assert export_source(tmp_path).startswith("the final model (no evaluation ran")
     (tmp_path / "best_model.zip").write_bytes(b"")
     assert export_source(tmp_path) == "the best evaluation's model"
+
+
+def test_evaluation_verdict_compares_with_step_0():
+    """Issue 32: SB3's EvalCallback logged "New best mean reward!" at the first trained evaluation below step 0's
+    return (step 0, the untrained policy, is never the best model). The log says so instead."""
+    from agents.train_envs import evaluation_verdict
+
+    assert "never kept as the best model" in evaluation_verdict(0, 1.6, new_best=True, untrained=None)
+    below = evaluation_verdict(10_000, -0.52, new_best=True, untrained=1.6)
+    assert below.startswith("New best trained model (mean reward -0.52)") and "below step 0's 1.60" in below
+    above = evaluation_verdict(10_000, 1.7, new_best=True, untrained=1.6)
+    assert above == "New best trained model (mean reward 1.70): saved as best_model.zip"
+    assert evaluation_verdict(20_000, 1.0, new_best=False, untrained=1.6) == ""
+
+
+@pytest.mark.slow  # a few seconds: a training run with three evaluations
+@pytest.mark.filterwarnings("ignore::UserWarning")
+def test_training_log_never_calls_a_worse_model_than_step_0_a_new_best(tmp_path, capsys):
+    """The training log's evaluations (issue 32): SB3's "New best mean reward!" is gone; step 0 says it is never the
+    best model; the first trained evaluation is the new best model, and when its return is below step 0's, the log
+    says so with both returns, as ``evaluations.npz`` has them."""
+    pytest.importorskip("stable_baselines3")
+    run_dir = tmp_path / "run"
+    assert _smoke(run_dir, 1024, "dummy", ["--eval-freq", "512"]) == 0
+    out = capsys.readouterr().out
+    assert "New best mean reward" not in out
+    evals = np.load(run_dir / "evaluations.npz")
+    assert list(evals["timesteps"]) == [0, 512, 1024]
+    means = evals["results"].mean(axis=1)
+    blocks = out.split("Eval num_timesteps=")[1:]
+    assert [b.split(",")[0] for b in blocks] == ["0", "512", "1024"], out
+    assert f"episode_reward={means[0]:.2f}" in blocks[0] and "Step 0 (the untrained policy)" in blocks[0]
+    first = blocks[1]
+    assert f"New best trained model (mean reward {means[1]:.2f})" in first
+    assert (f"below step 0's {means[0]:.2f}" in first) == (means[1] < means[0])
+    assert ("New best trained model" in blocks[2]) == (means[2] > means[1])

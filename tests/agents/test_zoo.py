@@ -48,8 +48,9 @@ def _zoo(tmp_path: Path, vec_env: str, extra_env: dict[str, str] | None = None) 
            "--gym-packages", "pneunet_env", "--conf-file", str(CONFIGS / "ppo.yaml"), "-n", "4096", "--seed", "0",
            "-f", str(tmp_path / "logs"), "--vec-env", vec_env, "--eval-freq", "-1"]
     t0 = time.monotonic()
+    # rl-zoo3 gives SB3 no log folder: SB3's goes under tmp_path, not $TMPDIR/SB3-<date> (left behind)
     res = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True, timeout=300,
-                         env={**os.environ, **(extra_env or {})})
+                         env={**os.environ, "SB3_LOGDIR": str(tmp_path / "sb3_log"), **(extra_env or {})})
     wall = time.monotonic() - t0
     assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
     run = tmp_path / "logs" / "ppo" / "PneuNetGrasp-v0_1"

@@ -43,6 +43,7 @@ WORK: dict[str, list[tuple[str, str]]] = {
     "bench design": [("agents.bench_design", "run_benchmark")],
     "bench render": [("pneunet_env.bench.render_speed", "bench_render")],
     "bench train": [("agents.bench_train", "bench_train")],
+    "bench gpu": [("pneunet_env.bench.gpu", "run_check")],
     "evaluate": [("agents.evaluate", "evaluate_policies")],
     "train": [("agents.train", "train"), ("agents.seeds", "run_seeds")],
     "train-skrl": [("agents.train_skrl", "train")],

@@ -60,7 +60,8 @@ REFERENCE_CASES = (
     ("soft_damaged", {"object_stiffness": 1e-5, **_WIDE}, 10, (480, 360)),  # crushed through: damaged, a film
     ("soft_dropped", {"object_stiffness": 1e-5, **_WIDE}, 55, (480, 360)),  # damaged and dropped in the hold
     ("firm_loaded", {"object_stiffness": 1e-3, **_WIDE}, 8, (480, 360)),
-    ("firm_crushed", {"object_stiffness": 1e-3, **_WIDE}, 20, (480, 360)),  # crushed through, not damaged
+    # indented past H (6.4 w > H = 0.76 w), not crushed (hoop strain: below 28 w): no film
+    ("firm_deep", {"object_stiffness": 1e-3, **_WIDE}, 20, (480, 360)),
     ("small", {"object_stiffness": 1e-3, **_WIDE}, 15, (160, 120)),
 )
 
@@ -200,6 +201,50 @@ def test_indentation_is_drawn():
         return ((r > 200) & (g > 150) & (b < 170) & (r - b > 50)).sum()
 
     assert object_pixels(0.0) > object_pixels(1.0) > object_pixels(1.8)
+
+
+def _film_pixels(state: RenderState) -> int:
+    """Pixels of the crushed film's red (the palette's DAMAGED) in the scene (the gauges left out), drawn as if
+    undamaged: the film and a crushed object's undeformed surface are then the only parts in that colour."""
+    from pneunet_env.envs.palette import DAMAGED
+
+    img = render_frame(state._replace(damaged=False), 480, 360, label=False)[:340, 30:450].astype(int)
+    return int(np.sum(np.abs(img - DAMAGED).max(axis=-1) <= 2))
+
+
+def test_the_crushed_film_is_the_task_flag_not_the_thickness():
+    """The film is drawn iff ``crushed`` (indentation past ``crush_indentation``), whatever ``H`` says."""
+    contact = dict(curvature=0.0205, in_contact=True, contact_force=1e-3, pressure_fraction=0.5, object_thickness=2.0)
+    deep_intact = _state(indentation=3.0, crush_indentation=5.0, **contact)  # past H, below the threshold
+    shallow_crushed = _state(indentation=1.0, crush_indentation=0.5, **contact)  # above the threshold, within H
+    assert not deep_intact.crushed and shallow_crushed.crushed
+    assert not _state(indentation=3.0, crush_indentation=0.5, **{**contact, "in_contact": False}).crushed
+    assert _film_pixels(deep_intact) == 0 and _film_pixels(shallow_crushed) > 500
+    assert frame_status(deep_intact._replace(damaged=True)) == "damaged"
+    assert frame_status(shallow_crushed._replace(damaged=True)) == "crushed"
+
+
+@pytest.mark.parametrize("overrides", [
+    {"damage_rule": "hoop_strain"},  # crush at eps_f/(w kappa_obj) = 15 w > H = 2 w: intact past H
+    {"damage_rule": "hoop_strain", "object_failure_strain": (0.02, 0.02)},  # crush at 1 w < H: crushed within H
+    {"damage_rule": "crush_fraction", "crush_fraction": 2.0},  # crush at 2 H: intact past H
+    {"damage_rule": "crush_fraction", "crush_fraction": 0.5},  # crush at H/2: crushed within H
+])
+def test_the_env_draws_the_crushed_film_by_the_damage_rule_in_force(overrides):
+    """Along a ramp, the env's frames show the film exactly on the steps its ``info["crushed"]`` is True, under
+    both damage rules, with objects where the rule and ``indentation > H`` disagree."""
+    env = gym.make("PneuNetGrasp-Paper-v0", render_mode="rgb_array", terminate_on_damage=False,
+                   terminate_on_slip=False, **overrides)
+    env.reset(seed=0, options={"object_stiffness": 1e-4})
+    disagreements = 0
+    for _ in range(12):
+        info = env.step(np.array([1.0], np.float32))[-1]
+        state = env.unwrapped.render_state()
+        assert state.crushed == bool(info["crushed"])
+        assert (_film_pixels(state) > 500) == bool(info["crushed"]), (state.indentation, state.crush_indentation)
+        disagreements += bool(info["crushed"]) != (state.indentation > state.object_thickness)
+    env.close()
+    assert disagreements > 0  # the ramp passes a step where the thickness alone would draw the wrong picture
 
 
 def test_render_modes_through_the_env(monkeypatch):

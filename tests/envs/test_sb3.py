@@ -142,9 +142,12 @@ def test_ppo_trains_a_few_thousand_steps_and_eval_callback_reads_success(tmp_pat
     from stable_baselines3 import PPO
     from stable_baselines3.common.callbacks import EvalCallback
 
+    from agents.train import no_folder_logger
+
     venv = VecMonitor(SB3VecEnv(num_envs=16))
     eval_env = VecMonitor(SB3VecEnv(num_envs=4))
     model = PPO("MlpPolicy", venv, n_steps=128, batch_size=512, n_epochs=2, seed=0, device="cpu", verbose=0)
+    model.set_logger(no_folder_logger())  # else learn() leaves an empty $TMPDIR/SB3-<date> folder
     before = model.policy.state_dict()["action_net.weight"].clone()
     callback = EvalCallback(eval_env, n_eval_episodes=4, eval_freq=128, log_path=str(tmp_path), verbose=0)
     model.learn(4096, callback=callback)
@@ -159,8 +162,11 @@ def test_ppo_trains_a_few_thousand_steps_and_eval_callback_reads_success(tmp_pat
 def test_sac_runs_on_it():
     from stable_baselines3 import SAC
 
+    from agents.train import no_folder_logger
+
     venv = SB3VecEnv(num_envs=4)
     model = SAC("MlpPolicy", venv, learning_starts=64, batch_size=64, train_freq=8, gradient_steps=1, seed=0,
                 device="cpu", verbose=0, policy_kwargs={"net_arch": [32, 32]})
+    model.set_logger(no_folder_logger())
     model.learn(400)
     assert model.num_timesteps >= 400 and model.replay_buffer.size() > 0
