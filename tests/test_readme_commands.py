@@ -35,6 +35,7 @@ import shlex
 import shutil
 import subprocess
 import sys
+import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -68,6 +69,7 @@ SMOKE: dict[str, tuple[str, ...]] = {
     "bench render": ("--frames", "5", "--repeats", "1"),
     "bench train": ("--steps", "512", "--threads", "1"),
     "bench design": ("--no-old", "--objects", "8", "--repeats", "1"),
+    "bench gpu": ("--dry-run",),  # under numba-cuda's simulator, on the CPU (the gpu extra; no GPU needed)
 }
 """Per subcommand: flags appended after the README's own to make the run small."""
 
@@ -407,8 +409,14 @@ def _run_in_process(argv: list[str], capfd) -> tuple[int, str]:
 
 
 def _run_subprocess(prefix: list[str], argv: list[str]) -> tuple[int, str]:
-    res = subprocess.run([*prefix, *argv], cwd=ROOT, capture_output=True, text=True, timeout=600,
-                         env={**os.environ, "PYTHONUNBUFFERED": "1"})
+    # SB3's own log folder (rl-zoo3 gives learn() no logger) goes to a folder of the run's, removed after it: neither
+    # $TMPDIR/SB3-<date> left behind nor the session's $SB3_LOGDIR, which conftest watches
+    log_dir = tempfile.mkdtemp(prefix="sb3_log_")
+    try:
+        res = subprocess.run([*prefix, *argv], cwd=ROOT, capture_output=True, text=True, timeout=600,
+                             env={**os.environ, "PYTHONUNBUFFERED": "1", "SB3_LOGDIR": log_dir})
+    finally:
+        shutil.rmtree(log_dir, ignore_errors=True)
     sys.stdout.write(res.stdout[-4000:])
     return res.returncode, res.stdout + res.stderr
 
