@@ -33,10 +33,42 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
-__all__ = ["Outcome", "Jobs", "run_jobs", "STOP_GRACE_S"]
+__all__ = ["Outcome", "Jobs", "run_jobs", "STOP_GRACE_S", "usable_cores", "available_memory", "check_jobs"]
 
 STOP_GRACE_S = 120.0
 """How long a worker may take to stop after its SIGINT (save a checkpoint, record its state) before it is killed."""
+
+def usable_cores() -> int:
+    """The cores this process may run on (its CPU affinity, else ``os.cpu_count()``)."""
+    try:
+        return max(len(os.sched_getaffinity(0)), 1)
+    except (AttributeError, OSError):  # no affinity on this platform
+        return max(os.cpu_count() or 1, 1)
+
+
+def available_memory() -> int | None:
+    """The memory available to new processes (bytes: Linux's ``MemAvailable``), or ``None`` where it is not known."""
+    try:
+        with open("/proc/meminfo") as fh:
+            for line in fh:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    return None
+
+
+def check_jobs(jobs: int, worker_bytes: int, flag: str = "--jobs") -> None:
+    """Refuse ``jobs`` worker processes (a ``ValueError`` naming ``flag``, in one line) beyond what this machine can
+    run at once: one per usable core, and ``worker_bytes`` of available memory each."""
+    cores = usable_cores()
+    memory = available_memory()
+    most = cores if memory is None else max(min(cores, memory // max(worker_bytes, 1)), 1)
+    if jobs > most:
+        gib = f", {memory / 2**30:.1f} GiB of memory available at {worker_bytes / 2**30:.1f} GiB a worker" \
+            if memory is not None else ""
+        raise ValueError(f"{flag} must be at most {most} on this machine ({cores} usable core(s){gib}), got {jobs}")
+
 
 _POLL_S = 0.2
 """How often the parent looks at its SIGINT flag while it waits (seconds)."""

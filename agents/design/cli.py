@@ -19,6 +19,10 @@ _DESCRIPTION = ("which actuator lets one blind pressure schedule hold a use case
                 "manufacturing error (Optuna over the walls, the chamber and sourced elastomers)")
 
 
+DESIGN_WORKER_BYTES = 1 << 30
+"""The memory a design worker is given (bytes): --jobs is at most the available memory over this (and the cores)."""
+
+
 def _weights(text: str | None) -> dict[str, float] | None:
     if text is None:
         return None
@@ -43,7 +47,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--trials", type=int, default=120,
                         help="designs in the study, in all (a resumed or joined study runs only the rest; default 120)")
     parser.add_argument("--jobs", type=int, default=1,
-                        help="worker processes on this machine (default 1)")
+                        help="worker processes on this machine (default 1; at most one per usable core, and 1 GiB of "
+                             "available memory each)")
     parser.add_argument("--storage", default=None,
                         help="Optuna storage shared by workers: an RDB URL (sqlite:///PATH, postgresql://...) or "
                              "journal:PATH (default: sqlite in --out, so a stopped run resumes)")
@@ -84,6 +89,10 @@ def spec_from_args(args: argparse.Namespace) -> StudySpec:
                               ("--top", args.top, 1000), ("--seed", args.seed, checks.MAX_SEED)):
         if value > most:  # the lower bounds, and the names of the settings, are StudySpec's
             raise ValueError(f"{flag} must be at most {most}, got {value}")
+    if args.jobs >= 1:  # (below 1: StudySpec's refusal)
+        from agents.workers import check_jobs
+
+        check_jobs(args.jobs, DESIGN_WORKER_BYTES)
     if args.export is not None and args.export.suffix not in (".yaml", ".yml"):
         raise ValueError(f"--export must name a .yaml file, got {str(args.export)!r}")
     if args.worker and args.report:
@@ -122,9 +131,15 @@ def run(args: argparse.Namespace) -> int:
     if result["importance"]:
         imp = result["importance"]
         print("importance (PED-ANOVA, design score): " + ", ".join(f"{k} {v:.2f}" for k, v in imp.items()))
-    print(f"{result['scored']} designs scored; wrote {spec.out / 'design.json'}, pareto.png, curves.png, "
+    print(f"{result['scored']} designs scored, {result['distinct']} distinct, in {result['trials']} trials"
+          f"{_duplicates(result)}; wrote {spec.out / 'design.json'}, pareto.png, curves.png, "
           f"importance.png and designs/ in {time.perf_counter() - t0:.0f} s")
     return 0
+
+
+def _duplicates(result) -> str:
+    n = result.get("duplicates", 0)
+    return f" ({n} duplicate design{'s' if n != 1 else ''} pruned unrun)" if n else ""
 
 
 def _run_checks(args: argparse.Namespace) -> int:

@@ -333,6 +333,10 @@ def _objective(spec: StudySpec, seeds: np.ndarray, reference: np.ndarray, parall
         # first of all: a trial whose process dies from here on is known by its process (:func:`fail_trials_of`)
         trial.set_user_attr("worker", _worker_name())
         params = _suggest(trial, spec)
+        same = _scored_before(trial.study, params, trial.number)
+        if same is not None:  # scored already: not run again, and not counted (the budget is of designs)
+            trial.set_user_attr("duplicate_of", same.number)
+            raise optuna.TrialPruned(f"the design of trial {same.number}")
         try:
             with interrupts.evaluation():
                 s = evaluate_design(params, seeds, reference, base, spec.seed, parallel=parallel)
@@ -386,6 +390,23 @@ def _quiet_interrupts():
         log.removeFilter(quiet)
 
 
+def _sampler(spec: StudySpec, seed: int):
+    optuna = _optuna()
+    with _knowingly():
+        return (optuna.samplers.TPESampler(seed=seed, multivariate=True, group=True, n_startup_trials=24)
+                if spec.sampler == "tpe" else optuna.samplers.NSGAIISampler(seed=seed, population_size=24))
+
+
+def sampler_seed(spec: StudySpec, worker: int | str, stored: int) -> int:
+    """The seed of one worker's sampler: from the study's seed, the worker (its index among ``--jobs``, or for a
+    ``--worker`` joining from elsewhere its ``HOST:PID``) and how many trials the storage held when it started; so
+    no two workers, and no two resumptions, replay one sequence of designs (each alone reproducible)."""
+    import zlib
+
+    who = worker if isinstance(worker, int) else (1 << 20) + zlib.crc32(str(worker).encode())
+    return int(np.random.SeedSequence([int(spec.seed), who, int(stored)]).generate_state(1)[0])
+
+
 def open_study(spec: StudySpec, create: bool = True):
     """Create or load the study; a resumed or joined study must have been made with the same settings. A new study's
     first trial is Table 1's design (enqueued before the settings are stored, so that a study cut between the two
@@ -393,9 +414,7 @@ def open_study(spec: StudySpec, create: bool = True):
     optuna = _optuna()
     spec.out.mkdir(parents=True, exist_ok=True)
     storage = make_storage(spec.storage, spec.out)
-    with _knowingly():
-        sampler = (optuna.samplers.TPESampler(seed=spec.seed, multivariate=True, group=True, n_startup_trials=24)
-                   if spec.sampler == "tpe" else optuna.samplers.NSGAIISampler(seed=spec.seed, population_size=24))
+    sampler = _sampler(spec, spec.seed)
     try:
         study = optuna.create_study(study_name=spec.name, storage=storage, sampler=sampler, load_if_exists=create,
                                     directions=["maximize"] * 3)
@@ -425,7 +444,29 @@ between Optuna's creating it and the objective's first line, which names the pro
 
 
 def _finished(study) -> int:
-    return sum(t.state.name in _FINISHED for t in study.get_trials(deepcopy=False))
+    """The trials the budget counts: a design scored, or refused by the model (a duplicate pruned unscored is not
+    one)."""
+    return sum(t.state.name in _FINISHED and "duplicate_of" not in t.user_attrs
+               for t in study.get_trials(deepcopy=False))
+
+
+def _counted(study) -> int:
+    """:func:`_finished`, and the trials running now (another worker's, which will count once finished)."""
+    return _finished(study) + sum(t.state.name == "RUNNING" and "duplicate_of" not in t.user_attrs
+                                  for t in study.get_trials(deepcopy=False))
+
+
+def _same_params(a: dict[str, Any], b: dict[str, Any]) -> bool:
+    return a.keys() == b.keys() and all(a[k] == b[k] for k in a)
+
+
+def _scored_before(study, params: dict[str, Any], number: int):
+    """A finished trial (scored, or refused by the model) with ``params`` exactly, other than trial ``number``."""
+    for t in study.get_trials(deepcopy=False):
+        if (t.number != number and t.state.name in _FINISHED and "duplicate_of" not in t.user_attrs
+                and ("score" in t.user_attrs or "invalid" in t.user_attrs) and _same_params(t.params, params)):
+            return t
+    return None
 
 
 def _waiting(study) -> int:
@@ -504,10 +545,22 @@ def mend(study) -> dict[str, list[int]]:
     return {"orphans": [t.number for t in orphans], "retried": again}
 
 
-def work(spec: StudySpec, parallel: bool | None = None, progress: bool | None = None) -> int:
+DUPLICATES_IN_A_ROW = 20
+"""A worker whose sampler proposes this many designs in a row that the study has scored already stops (its space is
+spent: a --bound too narrow)."""
+
+
+def work(spec: StudySpec, parallel: bool | None = None, progress: bool | None = None, worker: int | str | None = None,
+         share: int | None = None) -> int:
     """Run trials until the study has ``spec.trials`` finished ones (complete or refused) and no trial waits (a
     failed trial's retry, Table 1: run even if the count is reached); returns how many this process ran. Any number
-    of processes, here or on other machines, may do this on one study at once.
+    of processes, here or on other machines, may do this on one study at once: before each trial a worker asks the
+    storage how many are finished or running, and starts none once they are ``spec.trials``; a worker given a
+    ``share`` (:func:`shares`: the ``--jobs`` of one command) runs that many at most.
+
+    Every trial is a new design: the sampler is seeded per worker and per resumption (:func:`sampler_seed`; ``worker``
+    is the index among ``--jobs``, or ``None`` for this process's ``HOST:PID``), and a design the study has scored
+    already is pruned unrun as a duplicate (``duplicate_of``), which the budget does not count.
 
     Ctrl-C: the trial it cut is marked failed (Optuna's log of it is not printed), and ``KeyboardInterrupt``
     propagates; :func:`mend` retries the trial when the study is run again. A Ctrl-C cuts only a design's evaluation,
@@ -517,25 +570,38 @@ def work(spec: StudySpec, parallel: bool | None = None, progress: bool | None = 
     from pneunet_env.progress import progress as progress_bar
 
     study = open_study(spec)
+    study.sampler = _sampler(spec, sampler_seed(spec, _worker_name() if worker is None else worker,
+                                                len(study.get_trials(deepcopy=False))))
     seeds = episode_seeds(spec.objects, spec.seed)
     reference = reference_regimes(seeds, spec.base_config())
-    left = max(spec.trials - _finished(study), _waiting(study))
+    left = max(spec.trials - _counted(study), _waiting(study))
+    if share is not None:
+        left = min(left, share)
     if left <= 0:
         return 0
     bar = progress_bar(total=left, desc=f"design {spec.name}", unit="design", enabled=progress)
-    ran = 0
+    ran = in_a_row = 0
 
     def tick(study, trial):
-        nonlocal ran
-        ran += 1
+        nonlocal ran, in_a_row
+        if "duplicate_of" in trial.user_attrs:
+            in_a_row += 1
+            return
+        ran, in_a_row = ran + 1, 0
         bar.update()
-        if _finished(study) >= spec.trials and not _waiting(study):
-            study.stop()
+
+    def more() -> bool:
+        if _waiting(study):
+            return share is None or ran < share or worker == 0  # worker 0 runs what waits (its share counts it)
+        if share is not None and ran >= share:
+            return False
+        return _counted(study) < spec.trials and in_a_row < DUPLICATES_IN_A_ROW
 
     try:
         with _quiet_interrupts(), _knowingly(), _Interrupts() as interrupts:
-            study.optimize(_objective(spec, seeds, reference, parallel, interrupts), callbacks=[tick],
-                           gc_after_trial=False)
+            objective = _objective(spec, seeds, reference, parallel, interrupts)
+            while more():
+                study.optimize(objective, n_trials=1, callbacks=[tick], gc_after_trial=False)
     except KeyboardInterrupt as exc:
         _end_session(study)  # a transaction the interrupt cut, rolled back: its lock on the database goes
         with contextlib.suppress(Exception):  # a trial the interrupt cut before Optuna could mark it
@@ -546,13 +612,26 @@ def work(spec: StudySpec, parallel: bool | None = None, progress: bool | None = 
     return ran
 
 
-def _worker(job: tuple[StudySpec, int]) -> int:  # a --jobs process: one numba thread, no bar
-    spec, index = job
+def shares(left: int, waiting: int, jobs: int) -> list[int]:
+    """How many trials each of ``jobs`` workers runs, ``left`` in all (``--trials`` less those finished, or the
+    ``waiting`` ones if more), in equal parts; worker 0 runs the waiting trials (Table 1, retries) within its part,
+    or only them where they are more and the others share the rest. The workers together run ``left`` trials,
+    whatever ``jobs`` is."""
+    left, waiting = max(left, 0), min(max(waiting, 0), max(left, 0))
+    even = [left // jobs + (k < left % jobs) for k in range(jobs)]
+    if even[0] >= waiting:
+        return even
+    rest = left - waiting
+    return [waiting] + [rest // (jobs - 1) + (k < rest % (jobs - 1)) for k in range(jobs - 1)]
+
+
+def _worker(job: tuple[StudySpec, int, int]) -> int:  # a --jobs process: one numba thread, no bar
+    spec, index, share = job
     if index:  # the trials that wait (Table 1, the retries) are worker 0's: on SQLite two processes can both take
         study = open_study(spec)  # one waiting trial (it has no row locks) and run it twice
         while _waiting(study):
             time.sleep(0.2)
-    return work(spec, parallel=False, progress=False)
+    return work(spec, parallel=False, progress=False, worker=index, share=share)
 
 
 def run_study(spec: StudySpec, progress: bool | None = None, log=print) -> dict[str, Any]:
@@ -573,7 +652,7 @@ def run_study(spec: StudySpec, progress: bool | None = None, log=print) -> dict[
         trials = study.get_trials(deepcopy=False)
         before, failed = _running(trials), {t.number for t in trials if t.state.name == "FAIL"}
         try:
-            work(spec, progress=progress)
+            work(spec, progress=progress, worker=0)
         except KeyboardInterrupt:
             _fail_unnamed(study, before)
             cut = [t.number for t in study.get_trials(deepcopy=False) if t.state.name == "FAIL"
@@ -619,7 +698,8 @@ def _work_in_processes(spec: StudySpec, study) -> None:
 
     trials = study.get_trials(deepcopy=False)
     before, was_failed = _running(trials), {t.number for t in trials if t.state.name == "FAIL"}
-    ran = run_jobs(_worker, [(spec, k) for k in range(spec.jobs)], spec.jobs, on_end=on_end,
+    parts = shares(max(spec.trials - _counted(study), _waiting(study)), _waiting(study), spec.jobs)
+    ran = run_jobs(_worker, [(spec, k, n) for k, n in enumerate(parts) if n or not k], spec.jobs, on_end=on_end,
                    preload=("agents.design.study", "optuna"))
     if ran.clean:
         return
@@ -704,6 +784,8 @@ def report(spec: StudySpec, search_s: float = math.nan, progress: bool | None = 
     importance = _importance(study)
     result = {
         "study": spec.name, "settings": spec.settings(), "trials": len(study.trials), "scored": len(scored),
+        "distinct": len({json.dumps(t.params, sort_keys=True) for t, _ in scored}),
+        "duplicates": sum("duplicate_of" in t.user_attrs for t in study.trials),
         "search_seconds": search_s, "objects": spec.objects, "held_out": spec.held_out,
         "targets": list(TARGETS), "ramp_steps": RAMP_STEPS, "errors": {"walls": WALL_ERROR, "modulus": MODULUS_ERROR,
                                                                       "actuators": N_ERRORS},

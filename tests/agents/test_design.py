@@ -107,8 +107,17 @@ def test_journal_storage_and_export(tmp_path):
     assert exp.is_file() and exp.with_suffix(".best_ramp.json").is_file()
 
 
+@pytest.fixture
+def four_cores(monkeypatch):
+    """--jobs 2 and 3 taken on a machine of fewer cores (the bound is checked in the command, not the workers)."""
+    import agents.workers
+
+    monkeypatch.setattr(agents.workers, "usable_cores", lambda: 4, raising=False)
+    monkeypatch.setattr(agents.workers, "available_memory", lambda: None, raising=False)
+
+
 @pytest.mark.slow
-def test_two_workers_share_one_study(tmp_path):
+def test_two_workers_share_one_study(tmp_path, four_cores):
     out = tmp_path / "two"
     assert main(["--trials", "6", "--jobs", "2", "--out", str(out), *SMALL]) == 0
     study = optuna.load_study(study_name="design-kitchen", storage=f"sqlite:///{out / 'study.db'}")
@@ -160,3 +169,60 @@ def test_bench_design_prints_figures(tmp_path, capsys):
     assert "one design evaluation" in out and "CartPoleVectorEnv" in out
     res = json.loads((tmp_path / "b.json").read_text())
     assert res["evaluation"]["median_s"] > 0 and res["search"]["batched, as the command runs"]["seconds"] > 0
+
+
+@pytest.mark.slow  # issue 37: every trial a new design, --trials the budget whatever --jobs is, duplicates unrun
+def test_trials_is_the_budget_and_every_trial_a_new_design(tmp_path, capsys, four_cores):
+    one = tmp_path / "one"
+    assert main(["--trials", "1", "--jobs", "3", "--out", str(one), *SMALL]) == 0  # Table 1 only, once
+    assert json.loads((one / "design.json").read_text())["trials"] == 1
+    out = tmp_path / "budget"
+    assert main(["--trials", "3", "--jobs", "2", "--out", str(out), *SMALL]) == 0
+    res = json.loads((out / "design.json").read_text())
+    assert (res["trials"], res["scored"], res["distinct"], res["duplicates"]) == (3, 3, 3, 0)
+    assert "3 designs scored, 3 distinct, in 3 trials" in capsys.readouterr().out
+    study = optuna.load_study(study_name="design-kitchen", storage=f"sqlite:///{out / 'study.db'}")
+    again = next(t for t in study.trials if not t.user_attrs.get("table1"))
+    study.enqueue_trial(dict(again.params))  # a design the study has scored: pruned unrun, and not counted
+    # resumed (one process): a sampler seeded afresh, not the first run's sequence again
+    assert main(["--trials", "4", "--out", str(out), *SMALL]) == 0
+    res = json.loads((out / "design.json").read_text())
+    assert (res["trials"], res["scored"], res["distinct"], res["duplicates"]) == (5, 4, 4, 1)
+    dup = [t for t in optuna.load_study(study_name="design-kitchen", storage=f"sqlite:///{out / 'study.db'}").trials
+           if "duplicate_of" in t.user_attrs]
+    assert [(t.state.name, t.user_attrs["duplicate_of"]) for t in dup] == [("PRUNED", again.number)]
+    assert "(1 duplicate design pruned unrun)" in capsys.readouterr().out
+
+
+def test_one_trial_is_one_trial_whatever_the_jobs():
+    from agents.design.study import shares
+
+    assert shares(1, 1, 3) == [1, 0, 0]  # --trials 1 --jobs 3: Table 1 only, one worker
+    assert shares(6, 1, 2) == [3, 3] and sum(shares(7, 2, 3)) == 7
+    assert shares(3, 3, 2) == [3, 0] and shares(5, 3, 3) == [3, 1, 1]  # worker 0 runs what waits
+
+
+def test_each_worker_and_each_resumption_samples_its_own_designs(tmp_path):
+    from agents.design.study import StudySpec, sampler_seed
+
+    spec = StudySpec(out=tmp_path)
+    seeds = {sampler_seed(spec, w, n) for w in (0, 1, 2, "host:123") for n in (0, 1, 5)}
+    assert len(seeds) == 12
+    assert sampler_seed(spec, 1, 5) == sampler_seed(StudySpec(out=tmp_path / "x"), 1, 5)  # reproducible
+
+
+@pytest.mark.parametrize("cores, memory, jobs, match", [
+    (2, None, 3, r"--jobs must be at most 2 on this machine \(2 usable core\(s\)\), got 3"),
+    (2, None, 1024, "at most 2 on this machine"),
+    (8, 3 << 29, 2, r"--jobs must be at most 1 on this machine \(8 usable core\(s\), 1.5 GiB of memory"),
+])
+def test_jobs_beyond_the_machine_are_refused_by_name(tmp_path, monkeypatch, cores, memory, jobs, match):
+    import os
+
+    import agents.workers
+
+    monkeypatch.setattr(os, "sched_getaffinity", lambda pid: set(range(cores)), raising=False)
+    monkeypatch.setattr(agents.workers, "available_memory", lambda: memory, raising=False)
+    with pytest.raises(SystemExit, match=match):
+        main(["--jobs", str(jobs), "--report", "--out", str(tmp_path / "o"), "--quiet"])
+    assert not (tmp_path / "o").exists() or not any((tmp_path / "o").iterdir())
