@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import shutil
+import sys
 import tempfile
 
 import pytest
@@ -56,3 +57,23 @@ def _no_sb3_log_folder(_sb3_logdir):
         pytest.fail("the test made an SB3 log folder (a learn() with no logger: without $SB3_LOGDIR it would be left "
                     "in $TMPDIR as SB3-<date and time>); set the model's logger, e.g. agents.train.no_folder_logger()",
                     pytrace=False)
+
+
+@pytest.fixture
+def cli(capsys):
+    """``cli(argv)``: ``pneunet-grasp ARGV`` run in this process, as ``(exit status, stdout, stderr)``. A
+    ``SystemExit`` counts as a return: its status (0 for none; 1 for a message, which is printed on stderr, as Python
+    prints it)."""
+    from pneunet_env.cli import main
+
+    def run(argv: list[str]) -> tuple[int, str, str]:
+        try:
+            rc = main(argv)
+        except SystemExit as exc:
+            rc = 0 if exc.code is None else exc.code if isinstance(exc.code, int) else 1
+            if not isinstance(exc.code, int) and exc.code is not None:
+                print(exc.code, file=sys.stderr)
+        out, err = capsys.readouterr()
+        return rc, out, err
+
+    return run

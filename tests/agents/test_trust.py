@@ -13,8 +13,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from pneunet_env.cli import main
-
 MODELS = Path(__file__).resolve().parents[2] / "agents" / "models"
 KITCHEN = MODELS / "ppo_kitchen.zip"  # trained through pneunet_env.wrappers.PressureSetpoint: a setpoint model
 
@@ -27,16 +25,6 @@ class _Payload:
 
     def __reduce__(self):
         return (exec, (f"open({str(self.marker)!r}, 'w').close()",))
-
-
-def _run(argv, capsys):
-    """``main(argv)``: ``(status, stdout, stderr)``, a ``SystemExit``'s status included."""
-    try:
-        rc = main(argv)
-    except SystemExit as exc:
-        rc = exc.code
-    out, err = capsys.readouterr()
-    return rc, out, err
 
 
 def _vecnormalize(steps: int = 30):
@@ -54,7 +42,7 @@ def _vecnormalize(steps: int = 30):
 
 
 # ------------------------------------------------------------------------------------------------ 1. no unnamed pickle
-def test_resume_from_another_folder_never_unpickles_the_statistics_beside_it(tmp_path, capsys):
+def test_resume_from_another_folder_never_unpickles_the_statistics_beside_it(tmp_path, cli):
     """Before: ``--resume OTHER/model_256_steps.zip`` unpickled ``OTHER/model_vecnormalize_256_steps.pkl`` (its code
     ran), then failed with an ``AttributeError`` traceback."""
     pytest.importorskip("stable_baselines3")
@@ -64,9 +52,9 @@ def test_resume_from_another_folder_never_unpickles_the_statistics_beside_it(tmp
     marker = tmp_path / "pickle-ran"
     pkl = other / "model_vecnormalize_256_steps.pkl"
     pkl.write_bytes(pickle.dumps(_Payload(marker)))
-    rc, _, err = _run(["train", "--config", "ppo", "--run-dir", str(tmp_path / "run"), "--resume",
+    rc, _, err = cli(["train", "--config", "ppo", "--run-dir", str(tmp_path / "run"), "--resume",
                        str(other / "model_256_steps.zip"), "--timesteps", "512", "--n-envs", "2", "--vec-env", "dummy",
-                       "--no-progress"], capsys)
+                       "--no-progress"])
     assert not marker.exists()  # never unpickled
     assert rc not in (0, None)
     line = err.strip().splitlines()[-1]
@@ -74,9 +62,9 @@ def test_resume_from_another_folder_never_unpickles_the_statistics_beside_it(tmp
     assert not (tmp_path / "run").exists()  # refused before the work starts
 
 
-def test_resume_vecnormalize_needs_resume(tmp_path, capsys):
-    rc, _, err = _run(["train", "--config", "ppo", "--run-dir", str(tmp_path / "run"), "--resume-vecnormalize",
-                       str(tmp_path / "s.json")], capsys)
+def test_resume_vecnormalize_needs_resume(tmp_path, cli):
+    rc, _, err = cli(["train", "--config", "ppo", "--run-dir", str(tmp_path / "run"), "--resume-vecnormalize",
+                       str(tmp_path / "s.json")])
     assert rc not in (0, None) and "--resume-vecnormalize" in err and "needs --resume" in err
 
 
@@ -157,7 +145,7 @@ def test_statistics_as_numbers_rebuild_what_vecnormalize_load_rebuilds(tmp_path)
 
 @pytest.mark.slow  # two short training runs (about 10 s)
 @pytest.mark.filterwarnings("ignore::UserWarning")
-def test_a_run_resumes_from_its_checkpoints_json_statistics_not_their_pickle(tmp_path, capsys):
+def test_a_run_resumes_from_its_checkpoints_json_statistics_not_their_pickle(tmp_path, cli):
     """A checkpoint carries its statistics as JSON: ``--resume`` goes on from them; the pickle beside it (here replaced
     by a hostile one) is never loaded."""
     pytest.importorskip("stable_baselines3")
@@ -166,14 +154,14 @@ def test_a_run_resumes_from_its_checkpoints_json_statistics_not_their_pickle(tmp
     run = tmp_path / "run"
     smoke = ["train", "--config", "ppo", "--run-dir", str(run), "--n-envs", "2", "--eval-freq", "256",
              "--n-eval-episodes", "2", "--checkpoint-freq", "256", "--vec-env", "dummy", "--no-progress"]
-    assert _run([*smoke, "--timesteps", "512"], capsys)[0] == 0
+    assert cli([*smoke, "--timesteps", "512"])[0] == 0
     ckpt = run / "checkpoints"
     stats = NormalizationStats.load(ckpt / "model_vecnormalize_512_steps.json")
     assert stats.norm_reward and stats.ret_rms.count > 1
     marker = tmp_path / "pickle-ran"
     for pkl in ckpt.glob("*.pkl"):
         pkl.write_bytes(pickle.dumps(_Payload(marker)))
-    rc, out, err = _run([*smoke, "--timesteps", "768", "--resume"], capsys)
+    rc, out, err = cli([*smoke, "--timesteps", "768", "--resume"])
     assert rc == 0, err
     assert not marker.exists()
     record = json.loads((run / "run.json").read_text())

@@ -11,25 +11,13 @@ import pytest
 
 from agents.evaluate import damage_rule_text, rate_parts, task_description
 from pneunet_env import PAPER_TASK
-from pneunet_env.cli import main, require_extra
+from pneunet_env.cli import require_extra
 from pneunet_env.config import load_config
 
 
 @pytest.fixture(autouse=True)
 def _headless_matplotlib(monkeypatch):
     monkeypatch.setenv("MPLBACKEND", "Agg")
-
-
-def _run(argv: list[str], capsys) -> tuple[int, str, str]:
-    """``main(argv)``: (exit status, stdout, stderr); ``SystemExit`` counts as a return."""
-    try:
-        rc = main(argv)
-    except SystemExit as exc:
-        rc = 0 if exc.code is None else exc.code if isinstance(exc.code, int) else 1
-        if not isinstance(exc.code, int) and exc.code is not None:
-            print(exc.code, file=sys.stderr)
-    out, err = capsys.readouterr()
-    return rc, out, err
 
 
 def _strict_json(path):
@@ -58,9 +46,9 @@ def test_rate_parts_leave_out_empty_groups():
     assert rate_parts([("soft", None, 0), ("stiff", None, 0)]) == "no objects"
 
 
-def test_evaluate_on_the_default_task_describes_it(tmp_path, capsys):
-    rc, out, err = _run(["evaluate", "--policy", "best-ramp", "--stiffness-grid", "2", "--episodes", "1",
-                         "--objects", "4", "--no-plots", "--no-progress", "--out", str(tmp_path)], capsys)
+def test_evaluate_on_the_default_task_describes_it(tmp_path, cli):
+    rc, out, err = cli(["evaluate", "--policy", "best-ramp", "--stiffness-grid", "2", "--episodes", "1",
+                         "--objects", "4", "--no-plots", "--no-progress", "--out", str(tmp_path)])
     assert rc == 0, err
     assert "'kitchen' use case" in out and "hoop strain delta kappa_obj exceeds" in out
     assert "delta > 1 H" not in out and "H = 10 mm" not in out
@@ -80,21 +68,21 @@ def test_evaluate_on_the_default_task_describes_it(tmp_path, capsys):
     assert "success_rate_soft" not in summary["distribution"]["best-ramp"]
 
 
-def test_evaluate_prints_the_damage_rule_it_is_given(tmp_path, capsys):
-    rc, out, err = _run(["evaluate", "--policy", "ramp", "--stiffness-grid", "1", "--episodes", "1", "--no-plots",
-                         "--no-progress", "--set", "damage_rule=crush_fraction", "--out", str(tmp_path)], capsys)
+def test_evaluate_prints_the_damage_rule_it_is_given(tmp_path, cli):
+    rc, out, err = cli(["evaluate", "--policy", "ramp", "--stiffness-grid", "1", "--episodes", "1", "--no-plots",
+                         "--no-progress", "--set", "damage_rule=crush_fraction", "--out", str(tmp_path)])
     assert rc == 0, err
     assert "indentation delta exceeds 1 H" in out and "damage_rule crush_fraction" in out
     assert "hoop strain" not in out and "nan" not in out.lower()
 
 
-def test_demo_on_the_default_task_describes_it(capsys):
-    rc, out, err = _run(["demo", "--objects", "4", "--policy", "best-ramp", "--no-progress"], capsys)
+def test_demo_on_the_default_task_describes_it(cli):
+    rc, out, err = cli(["demo", "--objects", "4", "--policy", "best-ramp", "--no-progress"])
     assert rc == 0, err
     assert "'kitchen' use case" in out and "hoop strain delta kappa_obj exceeds" in out
     assert "regime from the mechanics at 60 kPa" in out and "nan" not in out.lower()
-    rc, out, err = _run(["demo", "--objects", "4", "--policy", "best-ramp", "--no-progress",
-                         "--set", "damage_rule=crush_fraction"], capsys)
+    rc, out, err = cli(["demo", "--objects", "4", "--policy", "best-ramp", "--no-progress",
+                         "--set", "damage_rule=crush_fraction"])
     assert rc == 0, err
     assert "damage_rule crush_fraction" in out and "hoop strain" not in out
 
@@ -102,8 +90,8 @@ def test_demo_on_the_default_task_describes_it(capsys):
 # ------------------------------------------------------------------------------------------------ the other task's
 @pytest.mark.parametrize("option", [["--k-min", "1e-4"], ["--k-max", "1"], ["--bins", "3"], ["--episodes", "2"],
                                     ["--bins", "3", "--k-min", "1e-4"]])
-def test_paper_options_on_the_default_task_are_an_error_naming_the_task(option, capsys):
-    rc, out, err = _run(["demo", *option], capsys)
+def test_paper_options_on_the_default_task_are_an_error_naming_the_task(option, cli):
+    rc, out, err = cli(["demo", *option])
     assert rc == 2 and out == ""
     line = err.strip()
     assert "\n" not in line and "Traceback" not in err
@@ -111,8 +99,8 @@ def test_paper_options_on_the_default_task_are_an_error_naming_the_task(option, 
     assert all(flag in line for flag in option if flag.startswith("--"))
 
 
-def test_a_default_task_option_on_the_paper_task_is_an_error(capsys):
-    rc, _, err = _run(["demo", "--task", "paper", "--objects", "3"], capsys)
+def test_a_default_task_option_on_the_paper_task_is_an_error(cli):
+    rc, _, err = cli(["demo", "--task", "paper", "--objects", "3"])
     assert rc == 2 and "--objects" in err and "--task paper" in err and err.count("\n") == 1
 
 
@@ -123,7 +111,7 @@ def test_a_default_task_option_on_the_paper_task_is_an_error(capsys):
     (["map", "--density", "1000", "--density-radius", "20"], "--density-radius"),
     (["evaluate", "--no-plots", "--schedule-stiffness", "1e-2"], "--schedule-stiffness"),
 ])
-def test_an_option_that_would_be_ignored_is_an_error(argv, named, capsys, monkeypatch):
+def test_an_option_that_would_be_ignored_is_an_error(argv, named, cli, monkeypatch):
     import agents.evaluate
     import agents.maps
     import agents.search
@@ -134,7 +122,7 @@ def test_an_option_that_would_be_ignored_is_an_error(argv, named, capsys, monkey
     for module, name in ((agents.search, "sensitivity_study"), (agents.search, "search_ramp"),
                          (agents.maps, "success_map"), (agents.evaluate, "evaluate_policies")):
         monkeypatch.setattr(module, name, no_work)
-    rc, out, err = _run(argv, capsys)
+    rc, out, err = cli(argv)
     assert rc == 2 and named in err and err.count("\n") == 1 and "Traceback" not in err
 
 
@@ -145,7 +133,7 @@ def test_an_option_that_would_be_ignored_is_an_error(argv, named, capsys, monkey
     (["search", "--sensitivity"], ("agents.search", "sensitivity_study")),
     (["search", "--plot", "x.png"], ("agents.search", "search_ramp")),
 ])
-def test_missing_matplotlib_stops_before_any_episode(argv, work, tmp_path, capsys, monkeypatch):
+def test_missing_matplotlib_stops_before_any_episode(argv, work, tmp_path, cli, monkeypatch):
     import importlib
 
     module = importlib.import_module(work[0])
@@ -156,7 +144,7 @@ def test_missing_matplotlib_stops_before_any_episode(argv, work, tmp_path, capsy
     monkeypatch.setattr(module, work[1], no_work)
     monkeypatch.setitem(sys.modules, "matplotlib", None)  # `import matplotlib` raises ImportError
     out_dir = tmp_path / "out"
-    rc, out, err = _run([*argv, "--out", str(out_dir)], capsys)
+    rc, out, err = cli([*argv, "--out", str(out_dir)])
     assert rc == 2 and out == "" and "Traceback" not in err
     line = err.strip()
     assert "\n" not in line and "matplotlib" in line and '".[plot]"' in line and "pneunet-env[plot]" in line
@@ -224,9 +212,9 @@ def test_map_defines_phi_in_its_figure_and_summary(tmp_path, monkeypatch):
 
 
 @pytest.mark.slow  # a few seconds: three policies, one cell, episode by episode
-def test_map_command_prints_and_writes_the_terms(tmp_path, capsys):
-    rc, out, err = _run(["map", "--grid", "1", "1", "--density", "1000", "--no-plot", "--no-progress",
-                         "--out", str(tmp_path)], capsys)
+def test_map_command_prints_and_writes_the_terms(tmp_path, cli):
+    rc, out, err = cli(["map", "--grid", "1", "1", "--density", "1000", "--no-plot", "--no-progress",
+                         "--out", str(tmp_path)])
     assert rc == 0, err
     assert DEFINITION in out and "force-controlled on the soft side" in out
     assert "hoop strain delta kappa_obj exceeds" in out and "'kitchen' use case" in out

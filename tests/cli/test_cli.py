@@ -18,20 +18,10 @@ ROOT = Path(__file__).resolve().parents[2]
 LONG_COMMANDS = ("render", "evaluate", "search", "figures", "bench speed", "bench solvers", "demo")
 
 
-def _run(argv: list[str], capsys) -> tuple[int, str, str]:
-    """``main(argv)`` in this process: (exit status, stdout, stderr); ``SystemExit`` counts as a return."""
-    try:
-        rc = main(argv)
-    except SystemExit as exc:
-        rc = 0 if exc.code is None else exc.code if isinstance(exc.code, int) else 1
-    out, err = capsys.readouterr()
-    return rc, out, err
-
-
 # ------------------------------------------------------------------------------------------------ --help
 @pytest.mark.parametrize("flag", ["--help", "-h"])
-def test_top_level_help(flag, capsys):
-    rc, out, _ = _run([flag], capsys)
+def test_top_level_help(flag, cli):
+    rc, out, _ = cli([flag])
     assert rc == 0
     assert out.startswith("usage: pneunet-grasp")
     for name in COMMANDS:
@@ -40,8 +30,8 @@ def test_top_level_help(flag, capsys):
 
 @pytest.mark.parametrize("flag", ["--help", "-h"])
 @pytest.mark.parametrize("group", list(GROUPS))
-def test_group_help_lists_its_sub_commands(group, flag, capsys):
-    rc, out, _ = _run([group, flag], capsys)
+def test_group_help_lists_its_sub_commands(group, flag, cli):
+    rc, out, _ = cli([group, flag])
     assert rc == 0
     assert out.startswith(f"usage: pneunet-grasp {group}")
     subs = [name.split(" ", 1)[1] for name in COMMANDS if name.startswith(group + " ")]
@@ -52,8 +42,8 @@ def test_group_help_lists_its_sub_commands(group, flag, capsys):
 
 @pytest.mark.parametrize("flag", ["--help", "-h"])
 @pytest.mark.parametrize("name", list(COMMANDS))
-def test_every_command_answers_help(name, flag, capsys):
-    rc, out, err = _run([*name.split(), flag], capsys)
+def test_every_command_answers_help(name, flag, cli):
+    rc, out, err = cli([*name.split(), flag])
     assert rc == 0, err
     assert out.startswith(f"usage: pneunet-grasp {name}")
     assert COMMANDS[name][1] in " ".join(out.split())  # the one-line help is the description (argparse wraps it)
@@ -61,10 +51,10 @@ def test_every_command_answers_help(name, flag, capsys):
         assert "--no-progress" in out
 
 
-def test_version(capsys):
+def test_version(cli):
     from pneunet_env import __version__
 
-    rc, out, _ = _run(["--version"], capsys)
+    rc, out, _ = cli(["--version"])
     assert rc == 0 and out.strip() == f"pneunet-grasp {__version__}"
 
 
@@ -77,15 +67,15 @@ def test_version(capsys):
     (["bench", "no-such-sub"], "unknown bench sub-command 'no-such-sub'"),
     (["bench", "sped"], "did you mean 'speed'"),
 ])
-def test_unknown_commands_exit_2(argv, message, capsys):
-    rc, out, err = _run(argv, capsys)
+def test_unknown_commands_exit_2(argv, message, cli):
+    rc, out, err = cli(argv)
     assert rc == 2
     assert message in err and "usage: pneunet-grasp" in err
     assert out == ""
 
 
-def test_a_bad_option_exits_2(capsys):
-    rc, _, err = _run(["solve", "--no-such-option"], capsys)
+def test_a_bad_option_exits_2(cli):
+    rc, _, err = cli(["solve", "--no-such-option"])
     assert rc == 2 and "unrecognized arguments" in err
 
 

@@ -14,23 +14,13 @@ from pathlib import Path
 
 import pytest
 
-from pneunet_env.cli import COMMANDS, COMPILE_NOTICE, _compile_notice, main
+from pneunet_env.cli import COMMANDS, COMPILE_NOTICE, _compile_notice
 
 ROOT = Path(__file__).resolve().parents[2]
 
 FRUIT = ("objects:\n  use_case: null\n  object_shear_modulus_kpa: [10, 300]\n  object_thickness_mm: [3, 6]\n"
          "  object_curvature_per_m: [50, 100]\n")
 """A config with its own objects (R 10-20 mm, from ranges): no shipped schedule was tuned for them."""
-
-
-def _run(argv, capsys):
-    """``main(argv)``: ``(status, stdout, stderr)``, a ``SystemExit``'s status included."""
-    try:
-        rc = main(argv)
-    except SystemExit as exc:
-        rc = exc.code
-    out, err = capsys.readouterr()
-    return rc, out, err
 
 
 @pytest.fixture
@@ -42,9 +32,9 @@ def fruit(tmp_path, monkeypatch):
 
 
 # ------------------------------------------------------------------------------------------------ 4a: the ramp named
-def test_demo_names_the_ramp_and_what_it_was_tuned_on_and_warns_where_none_fits(fruit, capsys):
+def test_demo_names_the_ramp_and_what_it_was_tuned_on_and_warns_where_none_fits(fruit, cli):
     """Before: ``best-ramp (42 kPa over 50 steps)``, the paper's 250 mm ring's ramp on 10-20 mm fruit, unsaid."""
-    rc, out, err = _run(["demo", "--config", "fruit.yaml", "--objects", "2"], capsys)
+    rc, out, err = cli(["demo", "--config", "fruit.yaml", "--objects", "2"])
     assert rc == 0
     assert ("tuned schedules: best-ramp: agents/best_ramp_paper.json, tuned on the paper's task (its 250 mm ring); "
             "rigid: agents/best_rigid_paper.json, tuned on the paper's task (its 250 mm ring)") in out
@@ -58,30 +48,30 @@ def test_demo_names_the_ramp_and_what_it_was_tuned_on_and_warns_where_none_fits(
     assert "pneunet-grasp search --gripper rigid --config fruit.yaml --out fruit.best_rigid.json" in line
 
 
-def test_demo_on_the_objects_its_ramp_was_tuned_on_names_it_and_does_not_warn(tmp_path, monkeypatch, capsys):
+def test_demo_on_the_objects_its_ramp_was_tuned_on_names_it_and_does_not_warn(tmp_path, monkeypatch, cli):
     monkeypatch.chdir(tmp_path)
-    rc, out, err = _run(["demo", "--objects", "1", "--policy", "best-ramp"], capsys)
+    rc, out, err = cli(["demo", "--objects", "1", "--policy", "best-ramp"])
     assert rc == 0 and err == ""
     assert ("tuned schedules: best-ramp: agents/best_ramp.json, tuned on the default task (the catalogue's "
             "'kitchen' use case)") in out
-    rc, out, err = _run(["demo", "--task", "paper", "--bins", "1", "--episodes", "1", "--policy", "best-ramp"], capsys)
+    rc, out, err = cli(["demo", "--task", "paper", "--bins", "1", "--episodes", "1", "--policy", "best-ramp"])
     assert rc == 0 and err == ""
     assert "best-ramp: agents/best_ramp_paper.json, tuned on the paper's task (its 250 mm ring)" in out
 
 
-def test_demo_on_the_papers_task_with_other_objects_suggests_the_papers_settings(tmp_path, monkeypatch, capsys):
+def test_demo_on_the_papers_task_with_other_objects_suggests_the_papers_settings(tmp_path, monkeypatch, cli):
     monkeypatch.chdir(tmp_path)
-    rc, _, err = _run(["demo", "--task", "paper", "--bins", "1", "--episodes", "1", "--policy", "best-ramp", "--set",
-                       "object_curvature_per_m=20"], capsys)
+    rc, _, err = cli(["demo", "--task", "paper", "--bins", "1", "--episodes", "1", "--policy", "best-ramp", "--set",
+                       "object_curvature_per_m=20"])
     assert rc == 0 and len(err.splitlines()) == 1
     assert ("pneunet-grasp search --set use_case=null --set class_weights=null --set damage_rule=crush_fraction "
             "--set object_curvature_per_m=20 --out best_ramp.json") in err
     assert "then pass --policy best-ramp:path=best_ramp.json" in err  # no config file to put it beside
 
 
-def test_evaluate_names_the_ramp_and_warns_as_the_demo_does(fruit, capsys):
-    rc, out, err = _run(["evaluate", "--config", "fruit.yaml", "--policy", "best-ramp", "--stiffness-grid", "1",
-                         "--episodes", "1", "--no-plots", "--out", "ev"], capsys)
+def test_evaluate_names_the_ramp_and_warns_as_the_demo_does(fruit, cli):
+    rc, out, err = cli(["evaluate", "--config", "fruit.yaml", "--policy", "best-ramp", "--stiffness-grid", "1",
+                         "--episodes", "1", "--no-plots", "--out", "ev"])
     assert rc == 0
     assert "tuned schedules: best-ramp: agents/best_ramp_paper.json, tuned on the paper's task" in out
     assert err.startswith("pneunet-grasp evaluate: warning: no shipped schedule") and len(err.splitlines()) == 1
@@ -206,7 +196,7 @@ def test_the_first_demo_says_it_is_compiling_and_the_second_does_not(tmp_path):
 
 # ------------------------------------------------------------------------------------------------ 4c: extras, named
 @pytest.mark.parametrize("missing", ["stable_baselines3", "torch"])
-def test_train_without_the_rl_extra_names_it_in_one_line_before_any_work(missing, tmp_path, monkeypatch, capsys):
+def test_train_without_the_rl_extra_names_it_in_one_line_before_any_work(missing, tmp_path, monkeypatch, cli):
     """Before: a 14-line ``ModuleNotFoundError`` traceback."""
     import agents.train
 
@@ -215,7 +205,7 @@ def test_train_without_the_rl_extra_names_it_in_one_line_before_any_work(missing
 
     monkeypatch.setattr(agents.train, "load_train_config", no_work)
     monkeypatch.setitem(sys.modules, missing, None)  # `import <missing>` raises ImportError
-    rc, out, err = _run(["train", "--config", "ppo", "--run-dir", str(tmp_path / "run")], capsys)
+    rc, out, err = cli(["train", "--config", "ppo", "--run-dir", str(tmp_path / "run")])
     assert rc == 2 and out == "" and "Traceback" not in err
     assert err.count("\n") == 1 and err.startswith(f"pneunet-grasp train: {missing} is not installed")
     assert '".[rl]"' in err and "pneunet-env[rl]" in err
@@ -223,30 +213,30 @@ def test_train_without_the_rl_extra_names_it_in_one_line_before_any_work(missing
 
 
 @pytest.mark.parametrize("argv", [["evaluate", "--policy", "ppo_kitchen"], ["demo", "--policy", "ppo_kitchen"]])
-def test_a_model_policy_without_the_rl_extra_names_it_in_one_line(argv, tmp_path, monkeypatch, capsys):
+def test_a_model_policy_without_the_rl_extra_names_it_in_one_line(argv, tmp_path, monkeypatch, cli):
     monkeypatch.chdir(tmp_path)
     monkeypatch.setitem(sys.modules, "stable_baselines3", None)
-    rc, out, err = _run([*argv, *(["--no-plots", "--out", "ev"] if argv[0] == "evaluate" else [])], capsys)
+    rc, out, err = cli([*argv, *(["--no-plots", "--out", "ev"] if argv[0] == "evaluate" else [])])
     assert rc == 2 and out == "" and "Traceback" not in err
     assert err.count("\n") == 1 and err.startswith(f"pneunet-grasp {argv[0]}: stable_baselines3 is not installed")
     assert '".[rl]"' in err
 
 
-def test_evaluate_by_default_without_the_rl_extra_says_how_to_do_without(tmp_path, monkeypatch, capsys):
+def test_evaluate_by_default_without_the_rl_extra_says_how_to_do_without(tmp_path, monkeypatch, cli):
     from agents.evaluate import DEFAULT_MODEL
 
     if not DEFAULT_MODEL.is_file():
         pytest.skip("no shipped model")
     monkeypatch.chdir(tmp_path)
     monkeypatch.setitem(sys.modules, "stable_baselines3", None)
-    rc, out, err = _run(["evaluate", "--no-plots", "--out", "ev"], capsys)
+    rc, out, err = cli(["evaluate", "--no-plots", "--out", "ev"])
     assert rc == 2 and err.count("\n") == 1 and "Traceback" not in err
     assert "needed for the default policies' PPO model (ppo_kitchen.zip)" in err
     assert "or pass --policy best-ramp --policy oracle --policy rigid to do without" in err
     assert not (tmp_path / "ev" / "evaluation.json").exists()
 
 
-def test_a_missing_extra_found_at_import_is_named_with_its_extra(monkeypatch, capsys):
+def test_a_missing_extra_found_at_import_is_named_with_its_extra(monkeypatch, cli):
     """A command module whose import needs an optional package names the extra (before: "install the package's
     extras (see README)")."""
     import importlib
@@ -260,7 +250,7 @@ def test_a_missing_extra_found_at_import_is_named_with_its_extra(monkeypatch, ca
 
     monkeypatch.setattr(importlib, "import_module", fake)
     monkeypatch.setitem(sys.modules, "torch", None)
-    rc, out, err = _run(["bench", "train"], capsys)
+    rc, out, err = cli(["bench", "train"])
     assert rc == 2 and err.count("\n") == 1
     assert err.startswith("pneunet-grasp bench train: torch is not installed") and '".[rl]"' in err
 
@@ -300,9 +290,9 @@ def test_a_reader_of_stdout_that_went_away_ends_it_quietly(argv):
     (["evaluate", "--episode", "1", "--no-plots"], "--episode"),
     (["search", "--target", "0.5"], "--target"),
 ])
-def test_an_abbreviated_option_is_refused(argv, typed, tmp_path, monkeypatch, capsys):
+def test_an_abbreviated_option_is_refused(argv, typed, tmp_path, monkeypatch, cli):
     monkeypatch.chdir(tmp_path)
-    rc, out, err = _run(argv, capsys)
+    rc, out, err = cli(argv)
     assert rc == 2 and out == ""
     assert err.count("\n") == 1 and f"unrecognized arguments: {typed}" in err
 
