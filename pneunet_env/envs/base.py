@@ -125,6 +125,7 @@ class SingleGraspEnv(gym.Env):
         """Close the env: from now on ``step``, ``reset`` and ``render`` raise ``ClosedEnvironmentError``. Closing
         again does nothing."""
         self.closed = True
+        self._ended = True  # step's "call reset()" branch then names the close: no test of its own on the hot path
         super().close()
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
@@ -148,10 +149,10 @@ class SingleGraspEnv(gym.Env):
 
     def step(self, action):
         """One step of :func:`pneunet_env.task.step`. A torch tensor is read as its value (detached)."""
-        self._check_open("step")
-        if self._record is None:
-            raise ResetNeeded("call reset() before step()")
-        if self._ended:
+        if self._record is None or self._ended:  # (close() sets _ended: a closed env comes here too)
+            self._check_open("step")
+            if self._record is None:
+                raise ResetNeeded("call reset() before step()")
             raise ResetNeeded("the episode has ended (terminated or truncated): call reset() before step()")
         if type(action) is not np.ndarray and is_torch(action):
             action = action.detach()  # a tensor that requires grad is read as its value (the env is not differentiable)
