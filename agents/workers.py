@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import os
 import signal
+import sys
 import threading
 import time
 from collections.abc import Callable, Sequence
@@ -131,6 +132,24 @@ def _child(target: Callable[[Any], Any], job: Any, conn) -> None:  # a worker pr
     from pneunet_env.files import interrupt_once
 
     signal.signal(signal.SIGINT, interrupt_once)  # SIGINT is still blocked here (inherited from the parent's start)
+    previous_unraisable = sys.unraisablehook
+
+    def unraisablehook(unraisable) -> None:
+        # a KeyboardInterrupt that a C callback could not raise (numba's compiler calls back into Python: llvmlite's
+        # object-cache notice) would be printed as "Exception ignored ..." with its traceback, and lost (the worker's
+        # one interrupt spent): raised again, quietly, once the callback has returned, as the command line's own
+        # process does (pneunet_env.files.command_line_interrupts)
+        if not isinstance(unraisable.exc_value, KeyboardInterrupt):
+            previous_unraisable(unraisable)
+            return
+        signal.signal(signal.SIGINT, interrupt_once)
+        # sent from another thread a moment later: sent here, it would be raised inside this hook and swallowed
+        # again (one that lands in a callback once more comes back here, until Python code raises it)
+        timer = threading.Timer(0.01, os.kill, (os.getpid(), signal.SIGINT))
+        timer.daemon = True
+        timer.start()
+
+    sys.unraisablehook = unraisablehook
     try:
         _unblock_sigint()  # a Ctrl-C that came during start-up is raised here, inside the try
         value = target(job)

@@ -82,6 +82,25 @@ def test_a_dead_worker_is_noticed_and_the_others_are_stopped_cleanly():
     assert took < 30, took  # not the 60 s the sleeping worker had left: stopped within seconds of the death
 
 
+# A worker's SIGINT that lands where Python cannot raise it (a finaliser here; numba's compiler calls back into Python
+# the same way, from llvmlite's object cache) is swallowed: without the worker's unraisable hook it printed "Exception
+# ignored ..." with a traceback, and the worker, its one interrupt spent, slept on.
+SWALLOWED = ("((type('D', (), {'__del__': lambda self: (__import__('os').kill(__import__('os').getpid(), 2), "
+             "__import__('time').sleep(0.5))})(), 0)[1], __import__('time').sleep(20))")
+
+
+def test_an_interrupt_a_callback_swallowed_is_raised_again_quietly(capfd):
+    from agents.workers import run_jobs
+
+    t0 = time.monotonic()
+    ran = run_jobs(eval, [SWALLOWED], 1)
+    took = time.monotonic() - t0
+    err = capfd.readouterr().err
+    assert [o.state for o in ran.outcomes] == ["interrupted"], (ran.outcomes, err)
+    assert took < 15, took  # not the 20 s sleep: the interrupt was raised again once the finaliser returned
+    assert "Exception ignored" not in err and "Traceback" not in err, err
+
+
 def test_ctrl_c_in_the_parent_stops_every_worker_and_is_reported(python_ctrl_c):
     from agents.workers import run_jobs
 
