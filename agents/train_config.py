@@ -76,7 +76,7 @@ from pneunet_env.yamlio import load_yaml_file
 
 __all__ = ["load_train_config", "project_config_path", "parse_literal", "action_mode", "LinearSchedule",
            "ENV_ID", "ALGOS", "PROJECT_KEYS", "ZOO_KEYS", "DEFAULTS", "SETPOINT_WRAPPER", "CALLABLE_PACKAGES",
-           "CALLABLE_BASES"]
+           "CALLABLE_BASES", "PATCHING_MODULES"]
 
 ENV_ID = "PneuNetGrasp-v0"
 ALGOS = ("ppo", "sac", "td3", "a2c")
@@ -95,6 +95,11 @@ DEFAULTS: dict[str, Any] = {
 }
 
 CALLABLE_PACKAGES = ("stable_baselines3", "sb3_contrib", "gymnasium", "pneunet_env", "agents")
+#: Modules that replace an allowed package's class in place when imported: rl-zoo3's ``gym_patches`` sets
+#: ``gymnasium.wrappers.TimeLimit`` to its own subclass, so once rl-zoo3 is imported in the process the name
+#: ``gymnasium.wrappers.TimeLimit`` resolves to a class defined there. The name a config writes must still lie in
+#: :data:`CALLABLE_PACKAGES`; only the class found under it may come from one of these.
+PATCHING_MODULES = ("rl_zoo3.gym_patches",)
 """The packages whose classes ``env_wrapper``, ``vec_env_wrapper`` and ``callback`` may name."""
 
 CALLABLE_BASES: dict[str, tuple[str, str]] = {
@@ -234,7 +239,8 @@ def _import_class(key: str, name: str):
         raise ValueError(f"train config key {key!r}: cannot import {name!r} ({exc})") from None
     if not isinstance(obj, type):
         raise _refuse(key, name, f"is not a class (a {type(obj).__name__})")
-    if str(getattr(obj, "__module__", "")).split(".")[0] not in CALLABLE_PACKAGES:
+    defined_in = str(getattr(obj, "__module__", ""))
+    if defined_in.split(".")[0] not in CALLABLE_PACKAGES and defined_in not in PATCHING_MODULES:
         raise _refuse(key, name, f"is defined in {obj.__module__}, outside the allowed packages")
     base_module, base_name = CALLABLE_BASES[key]
     base = getattr(importlib.import_module(base_module), base_name)

@@ -137,6 +137,21 @@ def test_documented_classes_still_load(tmp_path):
                                 "env_wrapper") == [(contrib.TimeFeatureWrapper, {})]
 
 
+def test_a_class_that_rl_zoo3_patched_in_still_loads(monkeypatch):
+    """Importing rl-zoo3 (its ``gym_patches``) replaces ``gymnasium.wrappers.TimeLimit`` with a subclass defined in
+    rl-zoo3; a config naming Gymnasium's TimeLimit still loads then (CI met this when an earlier test in the same
+    worker had imported rl-zoo3), while a class from another module placed there is still refused."""
+    import gymnasium.wrappers
+
+    patched = type("PatchedTimeLimit", (gymnasium.wrappers.TimeLimit,), {"__module__": "rl_zoo3.gym_patches"})
+    monkeypatch.setattr(gymnasium.wrappers, "TimeLimit", patched)
+    assert _wrapper_classes({"env_wrapper": "gymnasium.wrappers.TimeLimit"}, "env_wrapper") == [(patched, {})]
+    foreign = type("TimeLimit", (gymnasium.Wrapper,), {"__module__": "rl_zoo3.wrappers"})
+    monkeypatch.setattr(gymnasium.wrappers, "TimeLimit", foreign)
+    with pytest.raises(ValueError, match="is defined in rl_zoo3.wrappers, outside the allowed packages"):
+        _wrapper_classes({"env_wrapper": "gymnasium.wrappers.TimeLimit"}, "env_wrapper")
+
+
 def test_policy_kwargs_nn_names_must_be_module_classes():
     pytest.importorskip("torch")
     import torch.nn as nn
