@@ -2,7 +2,7 @@
 
 Users of a source checkout copy and edit ``configs/train/*.yaml`` and ``configs/env/*.yaml`` where they are; an
 installed wheel finds the same files by name (``pneunet-grasp train --config ppo``, ``demo --config
-designed-kitchen``) through :mod:`agents.resources`. Everything else is declared in ``pyproject.toml``.
+designed-kitchen``) through :mod:`agents.common.resources`. Everything else is declared in ``pyproject.toml``.
 """
 
 import shutil

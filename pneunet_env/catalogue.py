@@ -27,6 +27,8 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from pneunet_env.physics.contact import winkler_stiffness
 from pneunet_env.yamlio import load_yaml, load_yaml_file
 
@@ -66,7 +68,9 @@ class ObjectClass:
     """One material class of the catalogue. Ranges are ``(low, high)`` in the units of their names.
 
     ``shear_modulus_kpa`` is derived, ``E/3`` (incompressible solid); for classes outside the annulus model
-    (foams, sponges) that is only the incompressible approximation.
+    (foams, sponges) that is only the incompressible approximation. ``shape`` is the object's 3D shape, which sets
+    its mass (:func:`pneunet_env.objects.object_mass_kg`): ``"sphere"`` (the default) or ``"cylinder"``, whose
+    ``length_mm`` range the class must then give (drawn with one more uniform).
     """
 
     name: str
@@ -81,6 +85,8 @@ class ObjectClass:
     in_annulus_model: bool
     reason: str
     sources: tuple[str, ...]
+    shape: str = "sphere"
+    length_mm: Range | None = None
 
     @property
     def curvature_per_m(self) -> Range:
@@ -177,6 +183,14 @@ def _object_class(name: Any, entry: Any) -> ObjectClass:
             f"object class {name!r}: field 'thickness_mm' must stay below the radius (H_hi = {h_hi} mm >= "
             f"R_lo = {r_lo} mm gives H kappa_obj >= 1, where eq. 3.2 diverges)"
         )
+    shape = entry.get("shape", "sphere")
+    if shape not in ("sphere", "cylinder"):
+        raise ValueError(f"object class {name!r}: field 'shape' must be 'sphere' or 'cylinder', got {shape!r}")
+    length = None
+    if shape == "cylinder":
+        length = _range(name, "length_mm", entry.get("length_mm"))
+    elif "length_mm" in entry:
+        raise ValueError(f"object class {name!r}: field 'length_mm' belongs to a cylinder; a {shape} has none")
     e_lo, e_hi = ranges["youngs_modulus_kpa"]
     return ObjectClass(
         name=name,
@@ -191,6 +205,8 @@ def _object_class(name: Any, entry: Any) -> ObjectClass:
         in_annulus_model=in_model,
         reason=_text(name, "reason", entry["reason"]),
         sources=tuple(s.strip() for s in sources),
+        shape=shape,
+        length_mm=length,
     )
 
 
@@ -365,6 +381,13 @@ class ClassTable:
     density_kg_m3: Any
     failure_strain: Any
     failure_stress_kpa: Any
+    shape: Any = None
+    length_mm: Any = None
+
+    @property
+    def has_length(self) -> bool:
+        """Some class is a cylinder: its objects take one more uniform draw, for the length."""
+        return bool(np.any(self.shape != 0))
 
 
 def class_table(weights: tuple[tuple[str, float], ...]) -> ClassTable:
@@ -374,8 +397,6 @@ def class_table(weights: tuple[tuple[str, float], ...]) -> ClassTable:
 
 @functools.lru_cache(maxsize=32)
 def _class_table(weights: tuple[tuple[str, float], ...]) -> ClassTable:
-    import numpy as np
-
     classes = load_catalogue()
     for n, w in weights:
         if not isinstance(n, str) or n not in classes:
@@ -394,5 +415,7 @@ def _class_table(weights: tuple[tuple[str, float], ...]) -> ClassTable:
     def col(field):
         return np.array([getattr(classes[n], field) for n in names], dtype=float).T  # (2, n_classes)
 
+    shape = np.array([("sphere", "cylinder").index(classes[n].shape) for n in names], dtype=np.int64)
+    length = np.array([classes[n].length_mm or (0.0, 0.0) for n in names], dtype=float).T
     return ClassTable(names, np.cumsum(w) / w.sum(), col("shear_modulus_kpa"), col("radius_mm"), col("thickness_mm"),
-                      col("density_kg_m3"), col("failure_strain"), col("failure_stress_kpa"))
+                      col("density_kg_m3"), col("failure_strain"), col("failure_stress_kpa"), shape, length)

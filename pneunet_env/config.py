@@ -1,4 +1,4 @@
-"""Every parameter of ``PneuNetGrasp-v0``, in physical units, validated, in five sections; YAML loading.
+"""Every parameter of ``PneuNetGrasp-v1``, in physical units, validated, in five sections; YAML loading.
 
 :class:`EnvConfig` holds five typed sections, each the object its consumer takes:
 
@@ -139,6 +139,11 @@ class ObjectConfig:
         object_failure_strain: ``eps_f``, uniform: the object fails at a stress ``eps_f E_obj = 3 eps_f mu_obj``.
         use_case: a use case of the catalogue (``kitchen``, ``lab_bench``, ...), or ``None``.
         class_weights: ``{class: weight}`` (overrides ``use_case``), or ``None``.
+        shape: the 3D shape of an object drawn from the ranges, which sets its mass
+            (:func:`pneunet_env.objects.object_mass_kg`): ``"sphere"`` of radius ``1/kappa_obj``, ``"cylinder"`` or
+            ``"ring"`` (eq. 3.2's annulus, the paper's) of height ``object_length_mm``. A catalogue class has its own.
+        object_length_mm: the cylinder's or ring's height (mm); ``None``: the finger's width, the height the finger
+            touches. A sphere has none.
     """
 
     @property
@@ -162,8 +167,22 @@ class ObjectConfig:
     object_failure_strain: tuple[float, float] = (0.3, 0.3)
     use_case: str | None = "kitchen"
     class_weights: dict[str, float] | None = None
+    shape: str = "sphere"
+    object_length_mm: float | None = None
 
     def __post_init__(self) -> None:
+        from pneunet_env.objects import SHAPES
+
+        if self.shape not in SHAPES:
+            raise ValueError(f"config key 'shape' must be one of {SHAPES}, got {self.shape!r}")
+        if self.object_length_mm is not None:
+            if self.shape == "sphere":
+                raise ValueError(f"config key 'object_length_mm' = {self.object_length_mm!r} is a cylinder's or a "
+                                 "ring's height; a sphere has none (set it to null, or the shape)")
+            if isinstance(self.object_length_mm, bool) or not isinstance(self.object_length_mm, (int, float)) or \
+                    not math.isfinite(self.object_length_mm) or self.object_length_mm <= 0.0:
+                raise ValueError(f"config key 'object_length_mm' must be a finite number > 0 (mm) or null, got "
+                                 f"{self.object_length_mm!r}")
         if self.use_case is not None and not isinstance(self.use_case, str):
             raise ConfigTypeError(f"config key 'use_case' must be a string or null, got {self.use_case!r}")
         if self.class_weights is not None:
@@ -206,8 +225,12 @@ class TaskConfig:
         hold_steps: steps with the object lifted (slip checked); then the episode truncates.
         crush_fraction: crushed through when the indentation exceeds ``crush_fraction H``.
         friction_coefficient: ``mu_f`` between the actuator and the object.
-        grip_faces: opposed faces sharing the weight (a two-sided pinch: 2).
+        grip_faces: fingers sharing the weight (a two-sided pinch: 2).
         gravity_m_s2: ``g``.
+        hold_rule: ``"weight"``: held while ``grip_faces mu_f N >= m g``, the object's weight (its 3D mass) carried
+            by friction on the fingers' contact, ``N = F L_c b`` (the traction over the contact length ``L_c`` and
+            the finger's width ``b``); ``"slab"``: held while ``F >= rho g H / (grip_faces mu_f)``, a slab of depth
+            ``H`` (``PneuNetGrasp-v1``'s rule). See ``docs/env.md``, "The hold rule".
         reward_hold, reward_success, penalty_damage, penalty_slip: the reward's terms (>= 0; penalties subtracted).
         terminate_on_damage, terminate_on_slip: whether damage / a drop ends the episode.
         observe_volume: add the chamber's volume change (a flow sensor) to the observation.
@@ -233,12 +256,15 @@ class TaskConfig:
     terminate_on_slip: bool = True
     observe_volume: bool = False
     damage_rule: str = "hoop_strain"
+    hold_rule: str = "weight"
 
     def __post_init__(self) -> None:
         for name in BOOL_FIELDS:
             check_bool(name, getattr(self, name))
         if self.damage_rule not in DAMAGE_RULES:
             raise ValueError(f"config key 'damage_rule' must be one of {DAMAGE_RULES}, got {self.damage_rule!r}")
+        if self.hold_rule not in HOLD_RULES:
+            raise ValueError(f"config key 'hold_rule' must be one of {HOLD_RULES}, got {self.hold_rule!r}")
         for name in ("max_pressure_kpa", "max_pressure_step_kpa", "crush_fraction", "friction_coefficient",
                      "gravity_m_s2"):
             if getattr(self, name) <= 0.0:
@@ -267,6 +293,10 @@ BOOL_FIELDS = ("terminate_on_damage", "terminate_on_slip", "observe_volume")
 
 DAMAGE_RULES = ("hoop_strain", "crush_fraction")
 """The damage rules (:class:`TaskConfig` ``damage_rule``)."""
+
+HOLD_RULES = ("weight", "slab")
+"""The hold rules (:class:`TaskConfig` ``hold_rule``): the object's weight (``PneuNetGrasp-v1``), or a slab of depth
+``H`` (``PneuNetGrasp-v1``)."""
 
 MAX_RENDER_PIXELS = 4096
 """Largest ``render.width`` / ``render.height`` (a frame is drawn supersampled in memory)."""
@@ -493,12 +523,16 @@ def _str(name: str, value: Any) -> str:
     raise ValueError(f"config key {name!r} must be a string, got {value!r}")
 
 
+def _opt_float(name: str, value: Any) -> float | None:
+    return None if value is None else _float(name, value)
+
+
 def _weights(name: str, value: Any) -> dict[str, float] | None:
     return None if value is None else check_class_weights(name, value)
 
 
 _CHECKS = {"float": _float, "int": _int, "bool": _bool, "tuple[float, float]": _range, "str | None": _opt_str,
-           "str": _str, "dict[str, float] | None": _weights}
+           "str": _str, "dict[str, float] | None": _weights, "float | None": _opt_float}
 
 
 def _build_section(section: str, values: Mapping[str, Any]):

@@ -47,20 +47,20 @@ from pneunet_env import config, task, task_objects
 from pneunet_env.actions import check_action
 from pneunet_env.config import EnvConfig
 from pneunet_env.info import lean_info
-from pneunet_env.physics import _jit, batched, contact, free_table, mechanics, xp
+from pneunet_env.physics import _jit, batched, contact, continuation, free_table, mechanics, xp
 from pneunet_env.physics import solver as _solver
 from pneunet_env.physics._jit import HAVE_NUMBA
-from pneunet_env.physics.free_table import _follow_table
-from pneunet_env.physics.mechanics import Evaluation
-from pneunet_env.physics.solver import (
+from pneunet_env.physics.continuation import (
     STATUS_CONVERGED,
     STATUS_INACTIVE,
     Continuation,
-    Equilibrium,
     _evaluate,
     _follow_from,
     sym2_eigvals,
 )
+from pneunet_env.physics.free_table import _follow_table
+from pneunet_env.physics.mechanics import Evaluation
+from pneunet_env.physics.solver import Equilibrium
 from pneunet_env.task import TaskState, Touch
 from pneunet_env.task_objects import Thresholds
 
@@ -243,7 +243,8 @@ def _make_loop(stamp: int, variant: int):
     return _loop
 
 
-_SOURCES = (mechanics, contact, _solver, free_table, _jit, xp, config, task, task_objects, sys.modules[__name__])
+_SOURCES = (mechanics, contact, continuation, _solver, free_table, _jit, xp, config, task, task_objects,
+            sys.modules[__name__])
 """The sources the compiled steps are built from (they key numba's disk cache: see ``_jit.njit_cached``). ``config``
 too: the task's params are its task section's fields, in their order, and the compiled code reads them by
 position."""

@@ -20,7 +20,7 @@ from typing import Any, NamedTuple
 
 from pneunet_env.objects import GraspObject
 from pneunet_env.physics.solver import status_message
-from pneunet_env.task_objects import Thresholds
+from pneunet_env.task_objects import Thresholds, contact_length_mm
 
 # The task's records (TaskParams, EnvState, Step) are typed Any here: pneunet_env.task imports this module.
 
@@ -111,6 +111,10 @@ INFO: dict[str, InfoKey] = {
     "object_thickness_mm": InfoKey(lambda c: c.obj.thickness_mm, "object", "H (mm)"),
     "object_density_kg_m3": InfoKey(lambda c: c.obj.density_kg_m3, "object", "rho (kg/m^3)"),
     "object_failure_strain": InfoKey(lambda c: c.obj.failure_strain, "object", "eps_f"),
+    "object_mass_g": InfoKey(lambda c: c.obj.mass_kg * 1e3, "object",
+                             "m (g), from its 3D shape: what the grip must carry (hold_rule weight)"),
+    "contact_length_mm": InfoKey(lambda c: contact_length_mm(c.obj, c.params), "object",
+                                 "L_c (mm): each finger's contact, its length up to the object's share of wrap"),
     "object_class": InfoKey(lambda c: c.obj.class_id, "object",
                             "the catalogue class's code (-1: drawn from ranges); its name in a single env"),
     "failure_traction_kpa": InfoKey(lambda c: c.thresholds.failure_traction * c.mu, "object",
@@ -119,6 +123,9 @@ INFO: dict[str, InfoKey] = {
                                     "crushed above this indentation (mm)"),
     "grip_traction_kpa": InfoKey(lambda c: c.thresholds.grip_traction * c.mu, "object",
                                  "slips below this traction in the hold phase (kPa)"),
+    "grip_force_n": InfoKey(lambda c: c.params.grip_faces * c.params.friction_coefficient * c.eq.contact_force
+                            * c.mu * contact_length_mm(c.obj, c.params) * c.params.finger_width_mm * 1e-3, "full",
+                            "grip_faces mu_f F L_c b (N): the weight friction can carry now (hold_rule weight)"),
     "grip_ratio": InfoKey(lambda c: c.ratio(c.eq.contact_force, c.thresholds.grip_traction), "full",
                           "F over the grip traction (>= 1 holds)"),
     "damage_ratio": InfoKey(lambda c: c.ops.maximum(c.ratio(c.eq.contact_force, c.thresholds.failure_traction),

@@ -21,7 +21,7 @@ import numpy as np
 
 from pneunet_env.physics.units import Scales, object_modulus_from_stiffness, object_stiffness_from_material
 
-__all__ = ["GraspObject", "stiffness_per_modulus", "DEFAULT_SCALES"]
+__all__ = ["GraspObject", "stiffness_per_modulus", "DEFAULT_SCALES", "SHAPES", "object_mass_kg"]
 
 DEFAULT_SCALES = Scales()
 """The paper's scales: ``w = 5 mm``, ``mu = 50 kPa``."""
@@ -46,6 +46,30 @@ def _k_from_mu(shear_modulus_kpa, thickness_mm, curvature_per_m, scales=DEFAULT_
 @_vectorised
 def _mu_from_k(stiffness, thickness_mm, curvature_per_m, scales=DEFAULT_SCALES):
     return object_modulus_from_stiffness(stiffness, thickness_mm, curvature_per_m, scales)
+
+
+SHAPES = ("sphere", "cylinder", "ring")
+"""The 3D shapes an object's mass is computed for (:func:`object_mass_kg`), by code (0, 1, 2)."""
+
+
+def object_mass_kg(shape, radius_mm, density_kg_m3, thickness_mm=0.0, length_mm=0.0):
+    """The mass (kg) of an object of outer radius ``R`` (mm) and density ``rho`` (kg/m^3), by its 3D ``shape``:
+
+    * ``"sphere"`` (code 0): a solid ball, ``4/3 pi R^3 rho``;
+    * ``"cylinder"`` (1): a solid cylinder of length ``L`` (``length_mm``) whose circular section the finger wraps
+      (its axis out of the finger's plane), ``pi R^2 L rho``;
+    * ``"ring"`` (2): eq. 3.2's annulus itself, of thickness ``H`` (``thickness_mm``) and height ``L``,
+      ``pi (R^2 - (R - H)^2) L rho`` (the paper's 250 mm ring).
+
+    ``shape`` is a name or a code, or an integer array of codes (a batch); the others broadcast against it. The
+    compliant depth ``H`` enters only the ring's mass: a solid object's ``H`` is the layer that deforms, not its
+    size."""
+    code = SHAPES.index(shape) if isinstance(shape, str) else np.asarray(shape)
+    R, rho = np.asarray(radius_mm, dtype=float) * 1e-3, np.asarray(density_kg_m3, dtype=float)
+    L, H = np.asarray(length_mm, dtype=float) * 1e-3, np.asarray(thickness_mm, dtype=float) * 1e-3
+    volume = np.where(code == 0, 4.0 / 3.0 * np.pi * R * R * R,
+                      np.where(code == 1, np.pi * R * R * L, np.pi * (R * R - (R - H) * (R - H)) * L))
+    return _as(volume * rho)
 
 
 def stiffness_per_modulus(thickness_mm, curvature_per_m, scales: Scales = DEFAULT_SCALES):
@@ -74,6 +98,9 @@ class GraspObject:
     ``3 eps_f mu_obj``), and ``class_id``: the index of its catalogue class in the env's class table (``-1`` for an
     object drawn from ranges or built by hand).
 
+    Weight (the task's hold rule): ``mass_kg``, from the object's 3D shape (:func:`object_mass_kg`; a solid sphere
+    of radius ``1/kappa_obj`` unless its catalogue class or the config's ``objects.shape`` says otherwise).
+
     Dimensionless attributes (derived):
         stiffness: ``k~ = k_obj w/mu`` (eq. 3.2).
         curvature: ``w kappa_obj``.
@@ -90,6 +117,7 @@ class GraspObject:
     thickness: float | np.ndarray
     failure_stress_kpa: float | np.ndarray = float("nan")
     class_id: int | np.ndarray = -1
+    mass_kg: float | np.ndarray = float("nan")
 
     @classmethod
     def from_material(
@@ -100,8 +128,10 @@ class GraspObject:
         density_kg_m3=1000.0,
         failure_strain=0.3,
         scales: Scales = DEFAULT_SCALES,
+        mass_kg=None,
     ) -> GraspObject:
-        """The object of a given material and shape; validates (``ValueError`` naming the bad property)."""
+        """The object of a given material and shape; validates (``ValueError`` naming the bad property). Its mass is
+        ``mass_kg``, else a solid sphere's of radius ``1/kappa_obj`` (:func:`object_mass_kg`)."""
         _check_positive("density_kg_m3", density_kg_m3)
         _check_positive("failure_strain", failure_strain)
         args = (shear_modulus_kpa, thickness_mm, curvature_per_m, density_kg_m3, failure_strain)
@@ -119,6 +149,10 @@ class GraspObject:
         c = np.asarray(curvature_per_m, dtype=float) * scales.width_mm * 1e-3
         if np.any(c >= np.pi):
             raise ValueError(f"object curvature_per_m={curvature_per_m!r} gives w kappa_obj >= pi")
+        if mass_kg is None:
+            mass_kg = object_mass_kg("sphere", 1e3 / np.asarray(curvature_per_m, dtype=float), density_kg_m3)
+        else:
+            _check_positive("mass_kg", mass_kg)
         return cls(
             shear_modulus_kpa=_as(shear_modulus_kpa),
             thickness_mm=_as(thickness_mm),
@@ -129,6 +163,7 @@ class GraspObject:
             curvature=_as(c),
             thickness=_as(np.asarray(thickness_mm, dtype=float) / scales.width_mm),
             failure_stress_kpa=_as(failure_stress),
+            mass_kg=_as(np.broadcast_to(np.asarray(mass_kg, dtype=float), np.shape(k))),
         )
 
     @classmethod
@@ -140,10 +175,11 @@ class GraspObject:
         density_kg_m3=1000.0,
         failure_strain=0.3,
         scales: Scales = DEFAULT_SCALES,
+        mass_kg=None,
     ) -> GraspObject:
         """The object of a given dimensionless stiffness ``k~`` (its shear modulus from eq. 3.2 inverted)."""
         mu = _mu_from_k(stiffness, thickness_mm, curvature_per_m, scales=scales)
-        obj = cls.from_material(mu, thickness_mm, curvature_per_m, density_kg_m3, failure_strain, scales)
+        obj = cls.from_material(mu, thickness_mm, curvature_per_m, density_kg_m3, failure_strain, scales, mass_kg)
         # Keep the requested k~ exactly (the round trip through mu_obj may differ in the last bit).
         k = np.broadcast_to(np.asarray(stiffness, dtype=float), np.shape(obj.stiffness))
         return dataclasses.replace(obj, stiffness=_as(k.copy()))

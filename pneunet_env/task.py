@@ -27,8 +27,9 @@ Their public names are importable from here too.
 
 **Damage** (irreversible): the contact traction exceeds the object's failure traction (*overstressed*), or the
 indentation exceeds its crush indentation (*crushed*), both set by the config's ``damage_rule``
-(:func:`~pneunet_env.task_objects.object_thresholds`). **Slip** (hold phase only): friction cannot carry the weight,
-``F < rho g H / (grip_faces mu_f)``; the object is dropped. See ``docs/env.md`` for the physics of each threshold.
+(:func:`~pneunet_env.task_objects.object_thresholds`). **Slip** (hold phase only): friction cannot carry the
+object's weight, ``grip_faces mu_f F L_c b < m g`` (``hold_rule: weight``; ``PneuNetGrasp-v0``'s ``slab`` rule:
+``F < rho g H / (grip_faces mu_f)``); the object is dropped. See ``docs/env.md`` for the physics of each threshold.
 
 **Reward** (per step; see :func:`make_rules`):
 
@@ -83,6 +84,7 @@ from pneunet_env.task_objects import (
     Thresholds,
     class_name,
     class_names,
+    contact_length_mm,
     draw_count,
     object_from_uniforms,
     object_thresholds,
@@ -118,9 +120,9 @@ __all__ = [
     "autoreset",
     # re-exported from pneunet_env.task_objects, pneunet_env.actions and pneunet_env.info
     "PIN_KEYS", "CATALOGUE_DRAWS", "Thresholds", "sample_object", "object_from_uniforms", "object_thresholds",
-    "class_names", "class_name", "draw_count", "warn_if_beyond_convergence", "check_action", "single_action",
-    "batch_actions", "update_pressure", "INFO_LEVELS", "LEAN_KEYS", "OBJECT_KEYS", "FULL_KEYS", "info_keys",
-    "build_info", "object_info",
+    "contact_length_mm", "class_names", "class_name", "draw_count", "warn_if_beyond_convergence", "check_action",
+    "single_action", "batch_actions", "update_pressure", "INFO_LEVELS", "LEAN_KEYS", "OBJECT_KEYS", "FULL_KEYS",
+    "info_keys", "build_info", "object_info",
 ]
 
 
@@ -128,11 +130,12 @@ __all__ = [
 # The params: every field of the config's task section, the dimensionless numbers and the namespace
 # ---------------------------------------------------------------------------------------------
 
-DERIVED_FIELDS = ("pressure_max", "pressure_step", "width_mm", "shear_modulus_kpa", "depth_mm", "ops")
+DERIVED_FIELDS = ("pressure_max", "pressure_step", "width_mm", "shear_modulus_kpa", "depth_mm", "finger_width_mm",
+                  "finger_length_mm", "ops")
 """The fields of :class:`TaskParams` after the task section's: ``pressure_max`` (``p~_max = p_max / mu``; a rigid
 jaw's travel, mm), ``pressure_step`` (``p~`` change per step at ``|action| = 1``), the scales ``width_mm`` (``w``),
-``shear_modulus_kpa`` (``mu``) and ``depth_mm`` (``t``), and ``ops`` (the array namespace, default
-:data:`~pneunet_env.physics.xp.SCALAR`)."""
+``shear_modulus_kpa`` (``mu``) and ``depth_mm`` (``t``), the finger's width and length in mm (the hold rule's
+contact), and ``ops`` (the array namespace, default :data:`~pneunet_env.physics.xp.SCALAR`)."""
 
 
 class _TaskParamsMethods:
@@ -147,7 +150,8 @@ class _TaskParamsMethods:
         typ = task_params_type(type(tc))
         return typ(**{f.name: getattr(tc, f.name) for f in dataclasses.fields(tc)},
                    pressure_max=config.pressure_max, pressure_step=config.pressure_step, width_mm=a.width_mm,
-                   shear_modulus_kpa=a.shear_modulus_kpa, depth_mm=a.depth_mm, ops=ops)
+                   shear_modulus_kpa=a.shear_modulus_kpa, depth_mm=a.depth_mm, finger_width_mm=a.finger_width_mm,
+                   finger_length_mm=a.length_mm, ops=ops)
 
     @property
     def episode_steps(self) -> int:

@@ -19,7 +19,7 @@ import numpy as np
 
 from pneunet_env.catalogue import class_table
 from pneunet_env.config import LOG_UNIFORM_FIELDS, RANGE_FIELDS, EnvConfig
-from pneunet_env.objects import GraspObject
+from pneunet_env.objects import GraspObject, object_mass_kg
 from pneunet_env.physics.contact import CONVERGED_CONTACT_RATIO, contact_ratio, winkler_stiffness
 from pneunet_env.physics.params import MIN_OBJECT_CURVATURE
 
@@ -34,6 +34,7 @@ __all__ = [
     "class_name",
     "draw_count",
     "warn_if_beyond_convergence",
+    "contact_length_mm",
 ]
 
 PIN_KEYS = (
@@ -78,7 +79,8 @@ def sample_object(
 CATALOGUE_DRAWS = ("class", "object_shear_modulus_kpa", "radius_mm", "object_thickness_mm", "object_density_kg_m3",
                    "object_failure_strain", "failure_stress_kpa")
 """The uniform draws of a catalogue object, in order: the class (by weight), then its properties from the class's
-ranges (shear modulus, density and failure stress log-uniform; radius, thickness and failure strain uniform)."""
+ranges (shear modulus, density and failure stress log-uniform; radius, thickness and failure strain uniform). A
+catalogue with a cylinder class draws one more, its length (uniform), last."""
 
 
 def class_names(config: EnvConfig) -> tuple[str, ...]:
@@ -92,8 +94,11 @@ def class_name(names: tuple[str, ...], class_id: int) -> str:
 
 
 def draw_count(config: EnvConfig) -> int:
-    """Uniform draws per object: 7 from the catalogue (:data:`CATALOGUE_DRAWS`), else 5 (``RANGE_FIELDS``)."""
-    return len(CATALOGUE_DRAWS) if config.objects.from_catalogue else len(RANGE_FIELDS)
+    """Uniform draws per object: 7 from the catalogue (:data:`CATALOGUE_DRAWS`; 8 where a drawn class is a cylinder,
+    whose length takes one more), else 5 (``RANGE_FIELDS``)."""
+    if not config.objects.from_catalogue:
+        return len(RANGE_FIELDS)
+    return len(CATALOGUE_DRAWS) + class_table(config.objects.class_items).has_length
 
 
 def _log_uniform(lo, hi, x):
@@ -127,10 +132,15 @@ def _catalogue_values(u: np.ndarray, config: EnvConfig, batch: bool) -> tuple[di
         "object_density_kg_m3": log_uniform(tab.density_kg_m3, u[4]),
         "object_failure_strain": uniform(tab.failure_strain, u[5]),
     }
-    extra = {"failure_stress_kpa": log_uniform(tab.failure_stress_kpa, u[6]), "class_id": cid.astype(np.int64)}
+    length = uniform(tab.length_mm, u[7]) if tab.has_length else 0.0
+    mass = object_mass_kg(tab.shape[cid], 1e3 / values["object_curvature_per_m"], values["object_density_kg_m3"],
+                          length_mm=length)
+    extra = {"failure_stress_kpa": log_uniform(tab.failure_stress_kpa, u[6]), "class_id": cid.astype(np.int64),
+             "mass_kg": mass}
     if not batch:
         values = {k: float(v) for k, v in values.items()}
-        extra = {"failure_stress_kpa": float(extra["failure_stress_kpa"]), "class_id": int(extra["class_id"])}
+        extra = {"failure_stress_kpa": float(extra["failure_stress_kpa"]), "class_id": int(extra["class_id"]),
+                 "mass_kg": float(mass)}
     return values, extra
 
 
@@ -199,7 +209,36 @@ def object_from_uniforms(
         if pins and not str(exc).startswith("reset option"):  # a pin that does not fit the drawn object: name it
             raise ValueError(f"reset option(s) {sorted(pins)}: {exc}") from None
         raise
-    return obj if extra is None else dataclasses.replace(obj, **extra)
+    if extra is None:
+        return _with_shape(obj, config)
+    if pins:  # a pinned size or density: the class's shape, the pinned numbers
+        extra["mass_kg"] = _as_batch(object_mass_kg(
+            class_table(config.objects.class_items).shape[extra["class_id"]], 1e3 / np.asarray(obj.curvature_per_m),
+            obj.density_kg_m3, length_mm=_drawn_length(u, config, extra["class_id"])), batch)
+    return dataclasses.replace(obj, **extra)
+
+
+def _as_batch(x, batch: bool):
+    return np.asarray(x, dtype=float) if batch else float(x)
+
+
+def _drawn_length(u: np.ndarray, config: EnvConfig, cid) -> Any:
+    tab = class_table(config.objects.class_items)
+    if not tab.has_length:
+        return 0.0
+    lo, hi = tab.length_mm[0][cid], tab.length_mm[1][cid]
+    return lo + (hi - lo) * u[7]
+
+
+def _with_shape(obj: GraspObject, config: EnvConfig) -> GraspObject:
+    """``obj`` (drawn from the config's ranges, a solid sphere's mass) with the mass of the config's ``shape``."""
+    oc = config.objects
+    if oc.shape == "sphere":
+        return obj
+    length = oc.object_length_mm if oc.object_length_mm is not None else config.actuator.finger_width_mm
+    mass = object_mass_kg(oc.shape, 1e3 / np.asarray(obj.curvature_per_m), obj.density_kg_m3, obj.thickness_mm,
+                          length)
+    return dataclasses.replace(obj, mass_kg=mass)
 
 
 def _first_bad(name: str, value: np.ndarray, bad: np.ndarray, rule: str) -> None:
@@ -252,6 +291,7 @@ def _batch_object(shear_modulus_kpa, stiffness, thickness_mm, curvature_per_m, d
         thickness=H_mm / scales.width_mm,
         failure_stress_kpa=failure_stress,
         class_id=np.full(np.shape(k), -1, dtype=np.int64),
+        mass_kg=object_mass_kg("sphere", 1e3 / kap, rho),
     )
 
 
@@ -299,8 +339,16 @@ def object_thresholds(obj: GraspObject, params: Any) -> Thresholds:
     * ``"crush_fraction"`` (the paper task's rule): overstressed above ``3 eps_f mu_obj``, crushed through when
       ``delta > crush_fraction H``.
 
-    Slip (both): the grip traction ``rho g H / (grip_faces mu_f) / mu``: two faces of a slab of thickness ``H``
-    pinched, friction carrying the weight per unit contact area ``rho g H``. See ``docs/env.md``.
+    Slip, by ``params.hold_rule``: the grip traction below which friction cannot carry the object,
+
+    * ``"weight"``: ``m g / (grip_faces mu_f L_c b) / mu``: each of ``grip_faces`` fingers presses with the normal
+      force ``N = F L_c b`` (the traction over the contact length ``L_c``, :func:`contact_length_mm`, and the
+      finger's width ``b``), and friction ``mu_f N`` on each carries the object's weight ``m g`` (its mass from its
+      3D shape, :attr:`GraspObject.mass_kg`);
+    * ``"slab"`` (``PneuNetGrasp-v0``): ``rho g H / (grip_faces mu_f) / mu``, two faces of a slab of thickness ``H``
+      pinched, friction carrying the weight per unit contact area ``rho g H``.
+
+    See ``docs/env.md``, "The hold rule".
     """
     mu = params.shear_modulus_kpa
     if params.damage_rule == "hoop_strain":
@@ -309,9 +357,22 @@ def object_thresholds(obj: GraspObject, params: Any) -> Thresholds:
     else:
         failure = 3.0 * obj.failure_strain * obj.shear_modulus_kpa / mu
         crush = params.crush_fraction * obj.thickness
-    weight_kpa = obj.density_kg_m3 * params.gravity_m_s2 * obj.thickness_mm * 1e-3 * 1e-3  # rho g H, Pa -> kPa
+    if params.hold_rule == "slab":
+        weight_kpa = obj.density_kg_m3 * params.gravity_m_s2 * obj.thickness_mm * 1e-3 * 1e-3  # rho g H, Pa -> kPa
+    else:  # the weight m g over the contact area L_c b of every finger: N/m^2 = Pa -> kPa
+        area_m2 = contact_length_mm(obj, params) * 1e-3 * params.finger_width_mm * 1e-3
+        weight_kpa = obj.mass_kg * params.gravity_m_s2 / area_m2 * 1e-3
     grip = weight_kpa / (params.grip_faces * params.friction_coefficient) / mu
     return Thresholds(failure, crush, grip)
+
+
+def contact_length_mm(obj: GraspObject, params: Any):
+    """The length (mm) of each finger's contact with ``obj``: the whole finger (``params.finger_length_mm``), whose
+    cells all lie on the object at one curvature in the model, but at most the object's circumference shared by the
+    ``grip_faces`` fingers, ``2 pi R / grip_faces`` (half of it each for two fingers: they cannot wrap more)."""
+    wrap = 2e3 * np.pi / (obj.curvature_per_m * params.grip_faces)
+    # a batch: numpy arrays or torch tensors alike (both have clip(max=...))
+    return wrap.clip(max=params.finger_length_mm) if np.ndim(wrap) else min(params.finger_length_mm, float(wrap))
 
 
 def warn_if_beyond_convergence(obj: GraspObject, warned: bool = False) -> bool:

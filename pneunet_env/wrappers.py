@@ -1,6 +1,6 @@
 """The pressure-setpoint action: the agent commands a pressure, a rate-limited regulator follows it.
 
-``PneuNetGrasp-v0``'s own action is a pressure *increment* (``a`` in ``[-1, 1]`` moves the pressure by
+``PneuNetGrasp-v1``'s own action is a pressure *increment* (``a`` in ``[-1, 1]`` moves the pressure by
 ``a * max_pressure_step_kpa``). With the wrappers here the agent's action ``u`` in ``[-1, 1]`` is instead a pressure
 *setpoint*, ``(u + 1)/2`` of ``p_max``, and the env receives the increment that moves the pressure toward it as fast
 as the env allows (:func:`setpoint_to_rate`: a proportional regulator with a rate limit). The regulator reads only
@@ -10,14 +10,14 @@ what the trained PPO agent uses (``configs/train/ppo.yaml``); why: docs/results-
 One formula, two forms:
 
 * :class:`PressureSetpoint`, a ``gymnasium.Wrapper`` around one env: name it in an rl-zoo3 hyperparameter file
-  (``env_wrapper: pneunet_env.wrappers.PressureSetpoint``), or wrap ``gym.make("PneuNetGrasp-v0")`` yourself.
+  (``env_wrapper: pneunet_env.wrappers.PressureSetpoint``), or wrap ``gym.make("PneuNetGrasp-v1")`` yourself.
 * ``PressureSetpointVecEnv``, a stable-baselines3 ``VecEnvWrapper`` around a ``VecEnv`` (the batched env of
   :mod:`pneunet_env.envs.sb3`, which a per-env wrapper cannot reach): ``vec_env_wrapper:
   pneunet_env.wrappers.PressureSetpointVecEnv``. It is built on first access, so ``import pneunet_env.wrappers``
   needs neither stable-baselines3 nor torch (and ``from pneunet_env.wrappers import *`` does not import it).
 
 Both give the env the same actions on the same observations (``tests/agents/test_train.py``), and
-:class:`agents.policies.SB3Policy` applies the same :func:`setpoint_to_rate` when it runs a setpoint model.
+:class:`agents.policies.sb3.SB3Policy` applies the same :func:`setpoint_to_rate` when it runs a setpoint model.
 """
 
 from __future__ import annotations
@@ -79,7 +79,7 @@ class PressureSetpoint(gym.Wrapper):
     """The agent's action is a pressure setpoint; the env receives the rate-limited change toward it.
 
     Args:
-        env: a ``PneuNetGrasp-v0`` env (any wrapping); its observation's first entry is ``p / p_max``.
+        env: a ``PneuNetGrasp-v1`` env (any wrapping); its observation's first entry is ``p / p_max``.
         step_fraction: ``max_pressure_step_kpa / max_pressure_kpa``; default: read from the env's ``config``.
 
     The action space is unchanged (``Box(-1, 1, (1,))``) but now means the setpoint ``(u + 1)/2`` of ``p_max``;
@@ -88,7 +88,7 @@ class PressureSetpoint(gym.Wrapper):
 
     Example (rl-zoo3)::
 
-        PneuNetGrasp-v0:
+        PneuNetGrasp-v1:
           env_wrapper: pneunet_env.wrappers.PressureSetpoint
     """
 
@@ -130,7 +130,7 @@ def _vec_env_class():
         """:class:`PressureSetpoint` for a whole ``VecEnv`` (SB3's API): the same formula, on every env at once.
 
         Args:
-            venv: a ``VecEnv`` of ``PneuNetGrasp-v0`` (the batched :class:`~pneunet_env.envs.sb3.SB3VecEnv`, or
+            venv: a ``VecEnv`` of ``PneuNetGrasp-v1`` (the batched :class:`~pneunet_env.envs.sb3.SB3VecEnv`, or
                 a ``DummyVecEnv``/``SubprocVecEnv``), below any ``VecNormalize`` (it reads the raw pressure).
             step_fraction: ``max_pressure_step_kpa / max_pressure_kpa``; default: read from env 0's ``config``.
 

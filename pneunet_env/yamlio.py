@@ -1,7 +1,7 @@
 """The one reader of every YAML and JSON file the package reads, and of ``--set KEY=VALUE`` values.
 
-Env configs (:mod:`pneunet_env.config`), train configs (:mod:`agents.train_config`), the object catalogue
-(:mod:`pneunet_env.catalogue`), saved schedules (:func:`agents.scripted.load_ramp`), model sidecars and
+Env configs (:mod:`pneunet_env.config`), train configs (:mod:`agents.training.config`), the object catalogue
+(:mod:`pneunet_env.catalogue`), saved schedules (:func:`agents.policies.scripted.load_ramp`), model sidecars and
 normalisation statistics (:mod:`agents.policies`), and each ``--set`` value are read here, by the same rules:
 
 * **Plain data only.** Mappings, sequences, strings, integers, floats, booleans and null; no Python object is ever

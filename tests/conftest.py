@@ -50,12 +50,13 @@ def _sb3_logdir():
 @pytest.fixture(autouse=True)
 def _no_sb3_log_folder(_sb3_logdir):
     """Fail a test that leaves an SB3 log folder: a model's ``learn()`` with no logger (give it
-    ``agents.train.no_folder_logger()``), which would have left ``$TMPDIR/SB3-<date and time>`` behind."""
+    ``agents.training.train.no_folder_logger()``), which would have left ``$TMPDIR/SB3-<date and time>`` behind."""
     yield
     if os.path.lexists(_sb3_logdir):
         shutil.rmtree(_sb3_logdir, ignore_errors=True)
         pytest.fail("the test made an SB3 log folder (a learn() with no logger: without $SB3_LOGDIR it would be left "
-                    "in $TMPDIR as SB3-<date and time>); set the model's logger, e.g. agents.train.no_folder_logger()",
+                    "in $TMPDIR as SB3-<date and time>); set the model's logger, e.g. "
+                    "agents.training.train.no_folder_logger()",
                     pytrace=False)
 
 

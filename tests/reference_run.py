@@ -158,12 +158,12 @@ CONTINUATION = {"free_table": False, **JUMP}
 before the table; the ``*_free_table`` ones run with it)."""
 
 SCENARIOS: dict[str, Callable[[dict[str, Any]], None]] = {
-    "single": lambda out: _single(out, "single", "PneuNetGrasp-v0", 40, 7, **CONTINUATION),
+    "single": lambda out: _single(out, "single", "PneuNetGrasp-v1", 40, 7, **CONTINUATION),
     "single_paper_volume": lambda out: _single(out, "single_paper_volume", "PneuNetGrasp-Paper-v0", 30, 11,
                                                observe_volume=True, **CONTINUATION),
-    "single_budget": lambda out: _single(out, "single_budget", "PneuNetGrasp-v0", 24, 17, **BUDGET, **CONTINUATION),
-    "single_free_table": lambda out: _single(out, "single_free_table", "PneuNetGrasp-v0", 40, 7, **JUMP),
-    "rigid": lambda out: _single(out, "rigid", "RigidGrasp-v0", 30, 5),
+    "single_budget": lambda out: _single(out, "single_budget", "PneuNetGrasp-v1", 24, 17, **BUDGET, **CONTINUATION),
+    "single_free_table": lambda out: _single(out, "single_free_table", "PneuNetGrasp-v1", 40, 7, **JUMP),
+    "rigid": lambda out: _single(out, "rigid", "RigidGrasp-v1", 30, 5),
     "vector_numba": lambda out: _vector(out, "vector_numba", 24, 3, backend="numba", mask_at=9, **CONTINUATION),
     "vector_numba_free_table": lambda out: _vector(out, "vector_numba_free_table", 24, 3, backend="numba",
                                                    mask_at=9, **JUMP),
@@ -178,7 +178,7 @@ SCENARIOS: dict[str, Callable[[dict[str, Any]], None]] = {
                                         **JUMP),
     # the defaults since 0.12 (the free table and step_control "branch"); their "jump" twins: single_free_table,
     # single_paper_volume (also without the table), vector_numba_free_table, vector_numpy (none for the budget's one)
-    "single_branch": lambda out: _single(out, "single_branch", "PneuNetGrasp-v0", 40, 7),
+    "single_branch": lambda out: _single(out, "single_branch", "PneuNetGrasp-v1", 40, 7),
     "single_paper_branch": lambda out: _single(out, "single_paper_branch", "PneuNetGrasp-Paper-v0", 30, 11,
                                                observe_volume=True),
     "vector_numba_branch": lambda out: _vector(out, "vector_numba_branch", 24, 3, backend="numba", mask_at=9),

@@ -2,7 +2,11 @@
 
 * the physics imports nothing from the Gym layer (nor gymnasium itself);
 * below the CLI, the library imports nothing from ``agents``; the library never depends on ``paper`` or ``bench``;
-* no import cycle between the package's modules;
+* no import cycle between the package's modules, nor between those of ``agents``;
+* ``agents`` in layers (``docs/architecture.md``): ``common`` imports nothing from ``agents``; ``policies`` and
+  ``figures`` only ``common`` (a figure takes data: it imports no module that computes it); ``evaluation`` nothing
+  above it; no package imports ``bench``, and no module imports a command's CLI module but that command's own;
+* no module of either package is over 800 lines;
 * ``import pneunet_env`` needs neither torch, numba nor matplotlib, and registers every env id.
 """
 
@@ -49,8 +53,8 @@ def _imports(path: Path) -> set[str]:
     return out
 
 
-def _graph() -> dict[str, set[str]]:
-    modules = {_module_name(p): p for p in ROOT.rglob("*.py")}
+def _graph(root: Path = ROOT) -> dict[str, set[str]]:
+    modules = {_module_name(p): p for p in root.rglob("*.py")}
     graph = {}
     for name, path in modules.items():
         deps = {m for m in _imports(path) if m in modules and m != name}
@@ -60,6 +64,8 @@ def _graph() -> dict[str, set[str]]:
 
 
 GRAPH = _graph()
+AGENTS = ROOT.parent / "agents"
+AGENTS_GRAPH = _graph(AGENTS)
 
 
 def _imported(prefix: str) -> dict[str, set[str]]:
@@ -102,26 +108,107 @@ def test_the_library_does_not_depend_on_paper_or_bench():
         assert not bad, (mod, bad)
 
 
-def test_no_import_cycle():
-    # Tarjan-free: a depth-first search for a back edge.
+def _find_cycle(graph: dict[str, set[str]]) -> list[str] | None:
+    """An import cycle of ``graph`` (its modules, the first repeated at the end), or ``None``: a depth-first search
+    for a back edge."""
     state: dict[str, int] = {}
     stack: list[str] = []
 
-    def visit(m: str) -> None:
+    def visit(m: str) -> list[str] | None:
         state[m] = 1
         stack.append(m)
-        for d in sorted(GRAPH[m]):
+        for d in sorted(graph[m]):
             if state.get(d) == 1:
-                cycle = stack[stack.index(d):] + [d]
-                raise AssertionError(f"import cycle: {' -> '.join(cycle)}")
-            if d not in state:
-                visit(d)
+                return stack[stack.index(d):] + [d]
+            if d not in state and (cycle := visit(d)):
+                return cycle
         stack.pop()
         state[m] = 2
+        return None
 
-    for m in sorted(GRAPH):
-        if m not in state:
-            visit(m)
+    for m in sorted(graph):
+        if m not in state and (cycle := visit(m)):
+            return cycle
+    return None
+
+
+def test_no_import_cycle():
+    cycle = _find_cycle(GRAPH)
+    assert cycle is None, f"import cycle: {' -> '.join(cycle)}"
+
+
+def test_no_import_cycle_in_agents():
+    """Every import of ``agents`` at any depth (inside functions too): none may close a circle."""
+    assert len(AGENTS_GRAPH) > 30
+    cycle = _find_cycle(AGENTS_GRAPH)
+    assert cycle is None, f"import cycle: {' -> '.join(cycle)}"
+
+
+def test_the_cycle_finder_finds_a_cycle_and_the_graph_sees_imports_inside_functions(tmp_path):
+    assert _find_cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": set()}) == ["a", "b", "c", "a"]
+    assert _find_cycle({"a": {"b"}, "b": set()}) is None
+    # batch reaches run_episode inside a function: the walk sees it
+    assert "agents.evaluation.episodes" in AGENTS_GRAPH["agents.evaluation.batch"]
+
+
+_LAYERS: dict[str, tuple[str, ...]] = {
+    # package -> the packages of agents it may import (besides itself)
+    "agents.common": (),
+    "agents.policies": ("agents.common",),
+    "agents.figures": ("agents.common",),
+    "agents.evaluation": ("agents.common", "agents.policies", "agents.figures"),
+    "agents.search": ("agents.common", "agents.policies", "agents.figures", "agents.evaluation"),
+    "agents.training": ("agents.common", "agents.policies", "agents.figures", "agents.evaluation"),
+    "agents.design": ("agents.common", "agents.policies", "agents.figures", "agents.evaluation"),
+    "agents.bench": ("agents.common", "agents.policies", "agents.figures", "agents.evaluation", "agents.search",
+                     "agents.training", "agents.design"),
+}
+
+
+def _package(module: str) -> str:
+    return ".".join(module.split(".")[:2])
+
+
+def _is_command_cli(module: str) -> bool:
+    """A command's CLI module (``agents.search.cli``, ``agents.evaluation.map_cli``); ``agents.common.cli`` holds the
+    helpers every command shares."""
+    last = module.rsplit(".", 1)[-1]
+    return (last == "cli" or last.endswith("_cli")) and _package(module) != "agents.common"
+
+
+def test_agents_is_in_layers():
+    packages = {_package(m) for m in AGENTS_GRAPH if m != "agents"}
+    assert packages == set(_LAYERS), "a new package of agents needs its place in _LAYERS and docs/architecture.md"
+    for mod, deps in AGENTS_GRAPH.items():
+        if mod == "agents":
+            continue
+        own = _package(mod)
+        bad = {d for d in deps if _package(d) != own and _package(d) not in _LAYERS[own] and d != "agents"}
+        assert not bad, (mod, bad)
+        # a command's CLI module is the top of its package: only that package's __main__ imports it
+        bad = {d for d in deps if _is_command_cli(d) and not mod.endswith("__main__")
+               and not (own == "agents.design" and d.startswith("agents.design."))}
+        assert not bad, (mod, bad)
+
+
+def test_the_agents_layer_rule_catches_an_upward_import():
+    """The rule above fails on a figure that imports the module that computes its data."""
+    graph = {**AGENTS_GRAPH, "agents.figures.maps": AGENTS_GRAPH["agents.figures.maps"] | {"agents.evaluation.maps"}}
+    own = "agents.figures"
+    assert any(_package(d) not in _LAYERS[own] and _package(d) != own for d in graph["agents.figures.maps"])
+
+
+MAX_LINES = 800
+"""The house size of a module ("A house a newcomer can change")."""
+
+
+def test_no_module_is_over_the_house_size():
+    long = {}
+    for path in [*ROOT.rglob("*.py"), *AGENTS.rglob("*.py")]:
+        n = len(path.read_text().splitlines())
+        if n > MAX_LINES:
+            long[str(path.relative_to(ROOT.parent))] = n
+    assert not long, f"modules over {MAX_LINES} lines: {long}"
 
 
 def test_core_imports_without_torch_numba_or_matplotlib_and_registers_every_env():
@@ -133,14 +220,14 @@ def test_core_imports_without_torch_numba_or_matplotlib_and_registers_every_env(
         "            raise ImportError('blocked: ' + name)\n"
         "sys.meta_path.insert(0, Block())\n"
         "import gymnasium as gym, pneunet_env\n"
-        "env = gym.make('PneuNetGrasp-v0'); env.reset(seed=0); env.step([0.5])\n"
-        "env = gym.make('RigidGrasp-v0'); env.reset(seed=0); env.step([0.5])\n"
+        "env = gym.make('PneuNetGrasp-v1'); env.reset(seed=0); env.step([0.5])\n"
+        "env = gym.make('RigidGrasp-v1'); env.reset(seed=0); env.step([0.5])\n"
         "print('ok')\n"
     )
     res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120,
                          env={"PNEUNET_DISABLE_NUMBA": "1", "PATH": "/usr/bin:/bin"})
     assert res.returncode == 0 and res.stdout.strip() == "ok", res.stderr
-    for env_id in ("PneuNetGrasp-v0", "RigidGrasp-v0"):
+    for env_id in ("PneuNetGrasp-v1", "RigidGrasp-v1"):
         assert env_id in gym.registry
 
 

@@ -123,23 +123,23 @@ def test_config_is_frozen():
 def test_gym_make_takes_path_dict_and_overrides(tmp_path):
     path = tmp_path / "c.yaml"
     path.write_text("max_pressure_kpa: 40.0\nobserve_volume: true\n")
-    env = gym.make("PneuNetGrasp-v0", config=str(path), max_pressure_step_kpa=2.0)
+    env = gym.make("PneuNetGrasp-v1", config=str(path), max_pressure_step_kpa=2.0)
     cfg = env.unwrapped.config
     assert (cfg.task.max_pressure_kpa, cfg.task.max_pressure_step_kpa, cfg.task.observe_volume) == (40.0, 2.0, True)
     assert env.observation_space.shape == (2,)
     env.close()
-    env = gym.make("PneuNetGrasp-v0", config={"hold_steps": 5})
+    env = gym.make("PneuNetGrasp-v1", config={"hold_steps": 5})
     assert env.unwrapped.config.task.hold_steps == 5
     env.close()
     with pytest.raises(ValueError, match="'hold_step'"):
-        gym.make("PneuNetGrasp-v0", hold_step=5)
+        gym.make("PneuNetGrasp-v1", hold_step=5)
 
 
 def test_registered_time_limit_is_the_default_episode_length():
-    spec = gym.spec("PneuNetGrasp-v0")
+    spec = gym.spec("PneuNetGrasp-v1")
     assert spec.max_episode_steps == EnvConfig().episode_steps
     assert spec.entry_point == "pneunet_env.envs.grasp:PneuNetGraspEnv"
-    env = gym.make("pneunet_env:PneuNetGrasp-v0")
+    env = gym.make("pneunet_env:PneuNetGrasp-v1")
     assert env.spec.max_episode_steps == EnvConfig().episode_steps
     env.close()
 
@@ -264,7 +264,7 @@ BOOLEANS = [
 
 def _read_bool(key, text, value, tmp_path):
     """What ``key`` reads from each path: ``{path: bool or the error's message}``."""
-    from agents.evaluate import parse_overrides
+    from agents.common.cli import parse_overrides
 
     path = tmp_path / "b.yaml"
     path.write_text(f"{key}: {text}\n")
@@ -276,7 +276,7 @@ def _read_bool(key, text, value, tmp_path):
         "file, nested": lambda: load_config(nested),
         "--set": lambda: load_config(None, **parse_overrides([f"{key}={text}"])),
         "keyword": lambda: load_config(None, **{key: value}),
-        "gym.make": lambda: gym.make("PneuNetGrasp-v0", **{key: value}).unwrapped.config,
+        "gym.make": lambda: gym.make("PneuNetGrasp-v1", **{key: value}).unwrapped.config,
     }
     out = {}
     for name, read in reads.items():
@@ -326,12 +326,12 @@ def test_the_bool_message_names_the_value_and_its_kind():
 ])
 def test_an_unknown_key_names_the_closest_valid_key_in_a_file_set_and_keywords(typed, meant, tmp_path):
     """Before: every one of the 46 valid keys, and no "did you mean"."""
-    from agents.evaluate import parse_overrides
+    from agents.common.cli import parse_overrides
 
     path = tmp_path / "c.yaml"
     path.write_text(f"{typed}: 1\n")
     for read in (lambda: load_config(path), lambda: load_config(None, **parse_overrides([f"{typed}=1"])),
-                 lambda: load_config(None, **{typed: 1}), lambda: gym.make("PneuNetGrasp-v0", **{typed: 1})):
+                 lambda: load_config(None, **{typed: 1}), lambda: gym.make("PneuNetGrasp-v1", **{typed: 1})):
         with pytest.raises(ValueError) as info:
             read()
         message = str(info.value)

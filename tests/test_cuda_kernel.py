@@ -214,8 +214,8 @@ def test_on_a_gpu_the_kernel_env_is_the_numba_env():
     import gymnasium as gym
 
     n, steps = 256, 60
-    ref = gym.make_vec("PneuNetGrasp-v0", num_envs=n, backend="numba")
-    gpu = gym.make_vec("PneuNetGrasp-v0", num_envs=n, backend="torch", device="cuda")
+    ref = gym.make_vec("PneuNetGrasp-v1", num_envs=n, backend="numba")
+    gpu = gym.make_vec("PneuNetGrasp-v1", num_envs=n, backend="torch", device="cuda")
     assert gpu.unwrapped.kernel
     o1, _ = ref.reset(seed=3)
     o2, _ = gpu.reset(seed=3)

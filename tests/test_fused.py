@@ -30,7 +30,7 @@ def _fields(record, prefix=""):
 
 
 @pytest.mark.parametrize("env_id,overrides", [
-    ("PneuNetGrasp-v0", {}),
+    ("PneuNetGrasp-v1", {}),
     pytest.param("PneuNetGrasp-Paper-v0", {"observe_volume": True}, marks=pytest.mark.slow),
 ])
 def test_fused_step_equals_the_array_step(env_id, overrides):
@@ -56,12 +56,12 @@ def test_fused_step_equals_the_array_step(env_id, overrides):
 
 
 def test_fused_is_the_numba_default_and_checked():
-    assert gym.make_vec("PneuNetGrasp-v0", num_envs=2, backend="numba").unwrapped.fused
-    assert not gym.make_vec("PneuNetGrasp-v0", num_envs=2, backend="numpy").unwrapped.fused
+    assert gym.make_vec("PneuNetGrasp-v1", num_envs=2, backend="numba").unwrapped.fused
+    assert not gym.make_vec("PneuNetGrasp-v1", num_envs=2, backend="numpy").unwrapped.fused
     with pytest.raises(ValueError, match="fused"):
-        gym.make_vec("PneuNetGrasp-v0", num_envs=2, backend="numpy", fused=True)
+        gym.make_vec("PneuNetGrasp-v1", num_envs=2, backend="numpy", fused=True)
     with pytest.raises(ValueError, match="fused"):
-        gym.make_vec("PneuNetGrasp-v0", num_envs=2, backend="numba", fused="yes")
+        gym.make_vec("PneuNetGrasp-v1", num_envs=2, backend="numba", fused="yes")
 
 
 @pytest.mark.parametrize("mode", ["SameStep", pytest.param("NextStep", marks=pytest.mark.slow)])
@@ -70,7 +70,7 @@ def test_fused_env_with_its_evaluation_cache_equals_the_array_step_env(mode):
     and a masked reset: every observation, reward, flag and info value equal, bit for bit, but the work: the fused
     step makes one energy evaluation fewer wherever its cache held the start's."""
     n = 64
-    envs = [gym.make_vec("PneuNetGrasp-v0", num_envs=n, backend="numba", fused=f, autoreset_mode=mode,
+    envs = [gym.make_vec("PneuNetGrasp-v1", num_envs=n, backend="numba", fused=f, autoreset_mode=mode,
                          info_level="full", free_table=False) for f in (True, False)]
     outs = [e.reset(seed=2) for e in envs]
     rng = np.random.default_rng(1)
@@ -116,7 +116,7 @@ def test_an_unchanged_pressure_skips_the_solve_only_at_a_converged_minimum():
     result is the array step's, bit for bit. A start nudged off its minimum (its gradient above the tolerance) is
     solved, as the array step solves it."""
     n = 256
-    env = gym.make_vec("PneuNetGrasp-v0", num_envs=n, backend="numba", fused=False, free_table=False).unwrapped
+    env = gym.make_vec("PneuNetGrasp-v1", num_envs=n, backend="numba", fused=False, free_table=False).unwrapped
     env.reset(seed=3)
     state, params, contact = env.state, env._params, env._contact
     rng = np.random.default_rng(3)
@@ -188,7 +188,7 @@ def test_the_single_envs_compiled_step_is_task_step(overrides):
 
 
 def test_the_single_env_steps_with_the_compiled_call():
-    env = gym.make("PneuNetGrasp-v0").unwrapped
+    env = gym.make("PneuNetGrasp-v1").unwrapped
     assert env._single is not None
     env.reset(seed=0)
     for _ in range(3):
@@ -227,8 +227,8 @@ def test_the_single_envs_fast_step_equals_its_record_path(overrides):
     the same env stepping through records and :func:`pneunet_env.task.build_info`: every observation, reward, flag and
     info (keys in order, values and types), and the state built afterwards (every field, of the same type), step for
     step over random, clipped and zero actions, with the state read mid-episode on one env only."""
-    fast = gym.make("PneuNetGrasp-v0", **overrides)
-    slow = _record_path(gym.make("PneuNetGrasp-v0", **overrides))
+    fast = gym.make("PneuNetGrasp-v1", **overrides)
+    slow = _record_path(gym.make("PneuNetGrasp-v1", **overrides))
     rng = np.random.default_rng(5)
     steps = failures = 0
     for episode in range(8):
@@ -258,7 +258,7 @@ def test_the_single_envs_fast_step_survives_a_copy_and_a_pickle():
     import copy
     import pickle
 
-    env = gym.make("PneuNetGrasp-v0")
+    env = gym.make("PneuNetGrasp-v1")
     env.reset(seed=3)
     for _ in range(20):
         env.step(np.full(1, 0.8, np.float32))
@@ -288,7 +288,7 @@ def test_a_ctrl_c_as_the_compiled_call_returns_leaves_the_env_consistent():
     """A ``KeyboardInterrupt`` is raised as the compiled call returns (CPython handles a signal then). The step is then
     not taken, as far as the env is concerned: its state is the one before, and the next step goes on from that
     state, not from the packed one the call had already moved."""
-    env = gym.make("PneuNetGrasp-v0").unwrapped
+    env = gym.make("PneuNetGrasp-v1").unwrapped
     env.reset(seed=2)
     a = np.full(1, 0.7, np.float32)
     for _ in range(5):

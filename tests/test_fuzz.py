@@ -166,7 +166,7 @@ WALK_CONFIGS = [
 
 
 def _walk(cfg: dict, n: int, steps: int, seed: int, backend: str) -> tuple[int, int]:
-    env = gym.make_vec("PneuNetGrasp-v0", num_envs=n, backend=backend, **cfg)
+    env = gym.make_vec("PneuNetGrasp-v1", num_envs=n, backend=backend, **cfg)
     env.reset(seed=seed)
     rng = np.random.default_rng(seed)
     failed = 0
@@ -228,7 +228,7 @@ _TORCH_ENV: list = []
 
 def _torch_env():
     if not _TORCH_ENV:
-        env = gym.make_vec("PneuNetGrasp-v0", num_envs=4, backend="torch")
+        env = gym.make_vec("PneuNetGrasp-v1", num_envs=4, backend="torch")
         env.reset(seed=0)
         _TORCH_ENV.append(env)
     return _TORCH_ENV[0]
@@ -242,4 +242,4 @@ def _torch_env():
 def test_backend_arguments_are_checked(kwargs):
     pytest.importorskip("torch")
     with pytest.raises(ValueError):
-        gym.make_vec("PneuNetGrasp-v0", num_envs=2, **kwargs)
+        gym.make_vec("PneuNetGrasp-v1", num_envs=2, **kwargs)

@@ -95,7 +95,7 @@ def test_rl_zoo3_command_names_the_project_files():
     assert len(lines) == 1, lines
     argv = lines[0].split()
     opt = {argv[i]: argv[i + 1] for i in range(len(argv) - 1) if argv[i].startswith("-")}
-    assert opt["--env"] == "PneuNetGrasp-v0" and opt["--gym-packages"] == "pneunet_env" and opt["--algo"] == "ppo"
+    assert opt["--env"] == "PneuNetGrasp-v1" and opt["--gym-packages"] == "pneunet_env" and opt["--algo"] == "ppo"
     assert (ROOT / opt["--conf-file"]).is_file()
 
 

@@ -69,11 +69,11 @@ def test_invalid_objects_are_named(kwargs, match):
 
 def test_thresholds_in_physical_units():
     obj = GraspObject.from_material(10.0, 10.0, 4.0, density_kg_m3=1000.0, failure_strain=0.3)
-    thr = task.object_thresholds(obj, TP)
+    thr = task.object_thresholds(obj, TP._replace(hold_rule="slab"))
     mu = CFG.actuator.shear_modulus_kpa
     assert thr.failure_traction * mu == pytest.approx(3 * 0.3 * 10.0)  # kPa: eps_f E_obj
     assert thr.crush_indentation * CFG.actuator.width_mm == pytest.approx(10.0)  # mm: H
-    # rho g H / (2 mu_f) = 1000 * 9.81 * 0.01 / (2 * 0.5) Pa = 98.1 Pa
+    # the slab rule (PneuNetGrasp-v1): rho g H / (2 mu_f) = 1000 * 9.81 * 0.01 / (2 * 0.5) Pa = 98.1 Pa
     assert thr.grip_traction * mu * 1e3 == pytest.approx(98.1)
 
 
@@ -393,7 +393,7 @@ def test_a_new_reward_term_is_a_config_field_and_a_line_in_rules(kind, monkeypat
 
     def make(cfg):
         if kind == "single":  # task.step on Python scalars (the compiled single step: the slow test below)
-            env = gym.make("PneuNetGrasp-v0", config=cfg)
+            env = gym.make("PneuNetGrasp-v1", config=cfg)
             env.unwrapped._single = None
             return env
         return PneuNetGraspVectorEnv(3, config=cfg, backend="numba" if HAVE_NUMBA else "numpy", fused=False,
@@ -426,7 +426,7 @@ def test_a_new_reward_term_reaches_the_fused_numba_step(monkeypatch):
         return PneuNetGraspVectorEnv(3, config=cfg, backend="numba", parallel=False, autoreset_mode="NextStep")
 
     def single(cfg):
-        env = gym.make("PneuNetGrasp-v0", config=cfg)
+        env = gym.make("PneuNetGrasp-v1", config=cfg)
         assert env.unwrapped._single is not None
         return env
 

@@ -50,15 +50,16 @@ import json, sys, sysconfig
 from pathlib import Path
 
 import agents
-import agents.evaluate
-import agents.policies
+import agents.policies.registry
+import agents.policies.sb3
 import pneunet_env
 import pneunet_env.cli
 import pneunet_env.cli.demo
 
-model = agents.evaluate.DEFAULT_MODEL
-vecnorm = agents.policies.vecnormalize_path(model)
-data = [agents.policies.BEST_RAMP_PATH, agents.policies.BEST_RIGID_PATH, agents.policies.BEST_RAMP_PAPER_PATH,
+reg = agents.policies.registry
+model = reg.DEFAULT_MODEL
+vecnorm = agents.policies.sb3.vecnormalize_path(model)
+data = [reg.BEST_RAMP_PATH, reg.BEST_RIGID_PATH, reg.BEST_RAMP_PAPER_PATH,
         model, model.with_suffix(".json")]
 print(json.dumps({
     "purelib": sysconfig.get_paths()["purelib"],
@@ -209,8 +210,8 @@ def test_demo_runs_from_the_installed_wheel(installed: dict, tmp_path: Path) -> 
 
 def test_shipped_model_loads(installed: dict, tmp_path: Path) -> None:
     """The trained PPO model in agents/models/ loads, with its VecNormalize statistics, from the installed copy."""
-    probe = ("import json, agents.evaluate as ev, agents.policies as pol\n"
-             "e = pol.make_policy(str(ev.DEFAULT_MODEL))\n"
+    probe = ("import json, agents.policies.registry as pol\n"
+             "e = pol.make_policy(str(pol.DEFAULT_MODEL))\n"
              "print(json.dumps({'path': str(e.policy.path), 'vecnormalize': str(e.policy.vecnormalize_path),"
              " 'normalized': e.policy._norm is not None}))")
     find = _run([installed["python"], "-I", "-c", "import importlib.util as u; "

@@ -74,7 +74,7 @@ def test_duplicate_json_key_names_the_key_the_source_and_the_line():
 
 def test_a_ramp_file_with_a_duplicate_key_is_refused(tmp_path):
     """Before: ``json.loads`` kept the second ``target``, silently."""
-    from agents.scripted import load_ramp
+    from agents.policies.scripted import load_ramp
 
     path = tmp_path / "ramp.json"
     path.write_text('{"kind": "linear_ramp", "target": 0.4, "n_steps": 10, "target": 0.9}')
@@ -83,7 +83,7 @@ def test_a_ramp_file_with_a_duplicate_key_is_refused(tmp_path):
 
 
 def test_a_statistics_sidecar_with_a_duplicate_key_is_refused(tmp_path):
-    from agents.policies import NormalizationStats
+    from agents.policies.sb3 import NormalizationStats
 
     path = tmp_path / "s_vecnormalize.json"
     path.write_text('{"format": "pneunet_env/vecnormalize-stats/1", "format": "other"}')
@@ -104,7 +104,7 @@ NUMBERS = [
 
 @pytest.mark.parametrize("text, value", NUMBERS)
 def test_number_forms_read_as_numbers_in_a_file_and_in_set(text, value, tmp_path):
-    from agents.evaluate import parse_overrides
+    from agents.common.cli import parse_overrides
 
     path = tmp_path / "n.yaml"
     path.write_text(f"k: {text}\nl: [{text}]\n")
@@ -130,7 +130,7 @@ def test_numbers_read_differently_by_yaml_1_1_and_1_2_are_refused_by_name(text):
 
 def test_set_5e1_is_a_number_for_the_env_config():
     """Before: ``--set object_density_kg_m3=5e1`` gave the string '5e1', which the config refused."""
-    from agents.evaluate import parse_overrides
+    from agents.common.cli import parse_overrides
 
     over = parse_overrides(["object_density_kg_m3=5e1", "max_pressure_kpa=4.5e1", "use_case=null"])
     cfg = load_config(**over)
@@ -171,7 +171,7 @@ def test_alias_bomb_is_refused_before_it_expands():
 
 def test_alias_bomb_in_set_is_refused_naming_the_option():
     """Before: ``--set`` returned the bomb, and the config's checks ran past 60 s expanding it."""
-    from agents.evaluate import parse_overrides
+    from agents.common.cli import parse_overrides
 
     value = "{" + ", ".join(line for line in _bomb().strip().split("\n")) + "}"
     t0 = time.perf_counter()
@@ -327,7 +327,7 @@ def test_any_bytes_read_or_raise_value_error(data):
 @QUICK
 @given(text=st.one_of(st.text(max_size=60), YAMLISH))
 def test_any_set_value_reads_or_raises_value_error_naming_it(text):
-    from agents.evaluate import parse_overrides
+    from agents.common.cli import parse_overrides
 
     try:
         parse_overrides([f"hold_steps={text}"])
@@ -386,8 +386,8 @@ def test_any_env_config_file_loads_or_raises_value_or_type_error(lines, tmp_path
                                                  "frame_stack", "max_train_minutes", "use_sde"]), YAML_VALUES),
                       max_size=4))
 def test_any_train_config_file_loads_or_raises_value_or_type_error(lines, tmp_path_factory):
-    from agents.train_config import load_train_config
+    from agents.training.config import load_train_config
 
     path = tmp_path_factory.mktemp("t") / "ppo.yaml"
-    path.write_text("PneuNetGrasp-v0:\n" + "".join(f"  {k}: {v}\n" for k, v in lines))
+    path.write_text("PneuNetGrasp-v1:\n" + "".join(f"  {k}: {v}\n" for k, v in lines))
     _reads_or_refuses(load_train_config, path)

@@ -12,8 +12,8 @@ pressure is safe for soft objects yet firm enough for stiff ones. This module tu
 * **The pressure scale follows the elastomer.** A design's ``max_pressure_kpa`` is ``1.2 mu`` (the paper's
   ``p~ = 1.2``, Table 1's 60 kPa) and its step ``0.06 mu`` (Table 1's 3 kPa), so a stiffer elastomer is not
   cut off at 60 kPa (:func:`design_config`).
-* **One evaluation of a design** (:func:`evaluate_design`) is batched (:mod:`agents.batch`): every object x every
-  candidate blind pressure (:data:`TARGETS`, 60 ramps to ``p~ = 0.02 .. 1.2``) is one vector env run. From it:
+* **One evaluation of a design** (:func:`evaluate_design`) is batched (:mod:`agents.evaluation.batch`): every object x
+  every candidate blind pressure (:data:`TARGETS`, 60 ramps to ``p~ = 0.02 .. 1.2``) is one vector env run. From it:
 
   - the best blind ramp (the search's rule: most objects held; ties to the higher mean return, then the middle);
   - its success on force- and position-controlled objects, by Table 1's labels (the same split for every

@@ -26,7 +26,7 @@ TOP_SWEEP = (1.0, 1.5, 2.0, 2.5, 3.0, 3.5)
 
 
 def _t1(**changes: Any) -> dict[str, Any]:
-    from agents.design import table1_design
+    from agents.design.space import table1_design
 
     p = table1_design()
     p.pop("elastomer")
@@ -35,8 +35,8 @@ def _t1(**changes: Any) -> dict[str, Any]:
 
 def run_design_checks(n_objects: int = 200, seed: int = 0, base: EnvConfig | None = None) -> list[CheckResult]:
     """Measure every statement on ``n_objects`` search objects of ``base``'s use case (the default task's kitchen)."""
-    from agents.batch import episode_seeds
-    from agents.design import evaluate_design, reference_regimes
+    from agents.design.score import evaluate_design, reference_regimes
+    from agents.evaluation.batch import episode_seeds
 
     seeds = episode_seeds(n_objects, seed)
     ref = reference_regimes(seeds, base)

@@ -11,7 +11,8 @@ from pathlib import Path
 
 from agents.design.outputs import write_design
 from agents.design.space import parse_bounds
-from agents.design.study import StudySpec, make_storage, report, run_study, work
+from agents.design.storage import make_storage
+from agents.design.study import StudySpec, report, run_study, work
 from pneunet_env import arguments as checks
 from pneunet_env.files import atomic_write_text
 
@@ -90,7 +91,7 @@ def spec_from_args(args: argparse.Namespace) -> StudySpec:
         if value > most:  # the lower bounds, and the names of the settings, are StudySpec's
             raise ValueError(f"{flag} must be at most {most}, got {value}")
     if args.jobs >= 1:  # (below 1: StudySpec's refusal)
-        from agents.workers import check_jobs
+        from agents.common.workers import check_jobs
 
         check_jobs(args.jobs, DESIGN_WORKER_BYTES)
     if args.export is not None and args.export.suffix not in (".yaml", ".yml"):

@@ -12,7 +12,7 @@ from typing import Any
 import numpy as np
 
 from agents.design.space import P_TILDE_MAX, RAMP_STEPS, WINDOW_POINTS, design_config
-from agents.scripted import jsonable
+from agents.policies.scripted import jsonable
 from pneunet_env.config import EnvConfig
 from pneunet_env.yamlio import dump_yaml
 
@@ -33,7 +33,7 @@ def design_yaml(params: Mapping[str, Any], base: EnvConfig, note: str) -> str:
 def write_design(path: Path, row: dict[str, Any], base: EnvConfig, study: str) -> Path:
     """``PATH.yaml`` (the design's env config) and ``PATH.best_ramp.json`` (its blind ramp, found on the search
     objects), both written atomically."""
-    from agents.scripted import LinearRamp
+    from agents.policies.scripted import LinearRamp
     from pneunet_env.files import atomic_write_bytes
 
     s, h = row["search"], row["held_out"]
@@ -48,13 +48,14 @@ def write_design(path: Path, row: dict[str, Any], base: EnvConfig, study: str) -
             f"position-controlled {h['blind']['position']:.1%} (Table 1's labels); oracle "
             f"{h['oracle']['force']:.1%} / {h['oracle']['position']:.1%}; under manufacturing error "
             f"{h['robust']['force']:.1%} / {h['robust']['position']:.1%}.\n"
-            'Load with gym.make("PneuNetGrasp-v0", config="<this file>").')
+            'Load with gym.make("PneuNetGrasp-v1", config="<this file>").')
     path.parent.mkdir(parents=True, exist_ok=True)
     atomic_write_bytes(path, design_yaml(row["params"], base, note).encode())
     cfg = design_config(row["params"], base)
     ramp = LinearRamp(s["target"], RAMP_STEPS, cfg)
     data = {**ramp.to_dict(), "gripper": "pneunet", "target_kpa": s["pressure_kpa"],
-            "max_pressure_kpa": cfg.task.max_pressure_kpa,  # what target is a fraction of (agents.scripted.ramp_target)
+            # what target is a fraction of (agents.policies.scripted.ramp_target)
+            "max_pressure_kpa": cfg.task.max_pressure_kpa,
             "search": {"by": "pneunet-grasp design", "study": study, "trial": row["trial"],
                        "objects": s["objects"]["all"]},
             "score": {"search": {k: s[k] for k in ("blind", "oracle", "robust")},
@@ -81,7 +82,7 @@ def write_outputs(spec, result: dict[str, Any], base: EnvConfig) -> None:
 
 
 def _plt():
-    from agents.evaluate import _matplotlib
+    from agents.figures.style import _matplotlib
 
     return _matplotlib()
 

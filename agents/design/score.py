@@ -90,8 +90,8 @@ def _error_draws(seed: int, n_objects: int) -> tuple[np.ndarray, np.ndarray]:
 
 def reference_regimes(seeds: Sequence[int], base: EnvConfig | None = None) -> np.ndarray:
     """Table 1's regime of each object of ``seeds`` (the same physical objects for every design)."""
-    from agents.batch import draw_objects
-    from agents.evaluate import object_regimes
+    from agents.common.regimes import object_regimes
+    from agents.evaluation.batch import draw_objects
 
     cfg = design_config(table1_design(), base)
     obj = draw_objects(cfg, seeds)  # a reset is all it takes
@@ -112,8 +112,8 @@ def evaluate_design(params: Mapping[str, Any], seeds: Sequence[int], reference: 
         target: evaluate this blind target (a fraction of the design's ``max_pressure_kpa``) instead of searching
             for the best: the held-out report uses the schedule found on the search objects.
     """
-    from agents.batch import ramp_actions, ramp_grid, run_batch
-    from agents.evaluate import object_regimes
+    from agents.common.regimes import object_regimes
+    from agents.evaluation.batch import ramp_actions, ramp_grid, run_batch
 
     t0 = time.perf_counter()
     cfg = design_config(params, base)

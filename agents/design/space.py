@@ -19,7 +19,7 @@ TARGETS = tuple(round(i / 60, 10) for i in range(1, 61))
 """The candidate blind pressures, fractions of ``max_pressure_kpa``: ``p~ = 0.02 .. 1.2`` in steps of 0.02."""
 RAMP_STEPS = 20
 """The blind ramp's duration: any duration that ends inside the squeeze phase gives the same outcomes
-(:data:`agents.search.DURATIONS` says how that was measured)."""
+(:data:`agents.search.ramp.DURATIONS` says how that was measured)."""
 N_ERRORS = 8
 """Perturbed actuators per design for the manufacturing-error score."""
 WALL_ERROR = 0.10

@@ -1,4 +1,5 @@
-"""The design study on Optuna: storage, the objective, workers, and the held-out report."""
+"""The design study on Optuna: the objective, workers, and the held-out report (its storage:
+:mod:`agents.design.storage`)."""
 
 from __future__ import annotations
 
@@ -12,7 +13,6 @@ import signal
 import socket
 import threading
 import time
-import warnings
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any
@@ -33,161 +33,11 @@ from agents.design.space import (
     table1_design,
     validity,
 )
+from agents.design.storage import _knowingly, _optuna, make_storage
 from pneunet_env.config import EnvConfig, load_config
 
 STUDY_SETTINGS = ("use_case", "class_weights", "objects", "seed", "bounds", "elastomers", "config")
 """What a study was made with: a resumed (or joined) study must be run with the same."""
-
-
-def _optuna():
-    try:
-        import optuna
-    except ImportError:
-        raise ValueError("pneunet-grasp design needs optuna: pip install -e '.[design]'") from None
-    optuna.logging.set_verbosity(optuna.logging.WARNING)
-    return optuna
-
-
-STORAGE_TIMEOUT_S = 10.0
-"""How long an RDB server may take to answer before ``--storage URL`` is refused (seconds)."""
-
-_RDB_SCHEMES = ("sqlite", "postgresql", "mysql", "oracle", "mssql")
-_CONNECT_TIMEOUT = {"postgresql": "connect_timeout", "mysql": "connect_timeout"}
-"""The drivers' own connection time-out argument, by dialect (seconds)."""
-
-
-def _check_file(path: Path, name: str, what: str, is_kind) -> None:
-    """Refuse ``path`` (``ValueError`` naming ``name``) unless it is ``what`` (``is_kind(path)`` of a non-empty file),
-    or a new or empty file in a writable folder. Reads only: a refused file is left as it was, byte for byte."""
-    if path.is_dir():
-        raise ValueError(f"{name}: {str(path)!r} is a folder, not {what}")
-    folder = path.parent
-    if not folder.is_dir():
-        raise ValueError(f"{name}: the folder {str(folder)!r} does not exist" if not folder.exists() else
-                         f"{name}: {str(folder)!r} is not a folder")
-    if not path.exists():
-        if not os.access(folder, os.W_OK | os.X_OK):
-            raise ValueError(f"{name}: cannot create {str(path)!r}: the folder is not writable")
-        return
-    if not path.is_file():
-        raise ValueError(f"{name}: {str(path)!r} is not a regular file (a device, a pipe or a socket), not {what}")
-    if not os.access(path, os.R_OK | os.W_OK):
-        raise ValueError(f"{name}: {str(path)!r} cannot be both read and written")
-    if path.stat().st_size and not is_kind(path):
-        raise ValueError(f"{name}: {str(path)!r} is not {what}; it is left as it is: name a new or empty file, or "
-                         f"{what}")
-
-
-def _is_journal(path: Path) -> bool:
-    """Whether ``path``'s first line is an Optuna journal record (a JSON object with an ``op_code``)."""
-    try:
-        with open(path, "rb") as fh:
-            line = fh.readline(1 << 20)
-        record = json.loads(line)
-    except (OSError, ValueError):
-        return False
-    return isinstance(record, dict) and isinstance(record.get("op_code"), int)
-
-
-def _is_optuna_sqlite(path: Path) -> bool:
-    """Whether ``path`` is an SQLite database with Optuna's tables, or with none (read-only: nothing is written)."""
-    import sqlite3
-
-    try:
-        with open(path, "rb") as fh:
-            if fh.read(16) != b"SQLite format 3\x00":
-                return False
-        con = sqlite3.connect(f"{path.resolve().as_uri()}?mode=ro", uri=True)
-        try:
-            tables = {row[0] for row in con.execute("SELECT name FROM sqlite_master WHERE type = 'table'")}
-        finally:
-            con.close()
-    except (OSError, sqlite3.Error):
-        return False
-    return not tables or {"studies", "version_info"} <= tables
-
-
-def check_storage(storage: str | None, out: Path) -> None:
-    """Refuse a storage the study must not write to, before anything is written (``ValueError`` naming it).
-
-    ``journal:PATH`` must be an Optuna journal, or a new or empty file in a writable folder: a folder, a device
-    (``/dev/null``), a missing folder or a file of another kind (a text file) is refused, and left as it was.
-    ``sqlite:///PATH`` (and the default ``OUT/study.db``) the same, for an SQLite database with Optuna's tables (a
-    database of something else is refused too: the study would add its tables to it). Other RDB URLs are checked
-    when they are opened (:func:`make_storage`)."""
-    if storage is None:
-        path = out / "study.db"
-        if path.exists() or path.is_symlink():
-            _check_file(path, f"--out {str(out)!r}", "an SQLite database of Optuna", _is_optuna_sqlite)
-        return
-    name = f"--storage {storage!r}"
-    if storage.startswith("journal:"):
-        text = storage[len("journal:"):]
-        if not text:
-            raise ValueError(f"{name}: journal: needs a file path")
-        _check_file(Path(text), name, "an Optuna journal", _is_journal)
-    elif storage.split(":", 1)[0].split("+")[0] == "sqlite":
-        from sqlalchemy.engine import make_url
-        from sqlalchemy.exc import ArgumentError
-
-        try:
-            database = make_url(storage).database
-        except ArgumentError as exc:
-            raise ValueError(f"{name} is not a valid URL ({exc})") from None
-        if database and database != ":memory:" and not database.startswith("file:"):
-            _check_file(Path(database), name, "an SQLite database of Optuna", _is_optuna_sqlite)
-
-
-def _open_rdb(optuna, storage: str):
-    """``RDBStorage(storage)``, or a ``ValueError`` naming the URL if it fails or takes more than
-    :data:`STORAGE_TIMEOUT_S` (the driver's own connection time-out set where the dialect has one; the opening runs in
-    a daemon thread, so that a server that never answers does not hold the command)."""
-    dialect = storage.split("://", 1)[0].split("+")[0]
-    kwargs: dict[str, Any] = {}
-    if dialect in _CONNECT_TIMEOUT:
-        kwargs["engine_kwargs"] = {"connect_args": {_CONNECT_TIMEOUT[dialect]: int(STORAGE_TIMEOUT_S)}}
-    result: list[Any] = []
-
-    def opening() -> None:
-        try:
-            with _knowingly():  # the heartbeat's ExperimentalWarning: used as it is
-                result.append(optuna.storages.RDBStorage(storage, heartbeat_interval=60, grace_period=120, **kwargs))
-        except BaseException as exc:  # a driver missing, a bad URL, a server that refuses: named below
-            result.append(exc)
-
-    thread = threading.Thread(target=opening, name="open --storage", daemon=True)
-    thread.start()
-    thread.join(STORAGE_TIMEOUT_S)
-    if not result:
-        raise ValueError(f"--storage {storage!r}: no answer within {STORAGE_TIMEOUT_S:g} s (is the server running "
-                         "and reachable?)")
-    if isinstance(result[0], BaseException):
-        exc = result[0]
-        raise ValueError(f"--storage {storage!r}: cannot open it ({type(exc).__name__}: {exc})") from None
-    return result[0]
-
-
-def make_storage(storage: str | None, out: Path):
-    """The study's storage: ``None`` -> a SQLite file ``out/study.db``; ``journal:PATH`` -> an Optuna journal file
-    (one file several processes append to); any other string -> an Optuna RDB URL (``sqlite:///...``,
-    ``postgresql://...``, ``mysql://...``), which workers on several machines can share. Each is checked first
-    (:func:`check_storage`: nothing is written to a storage that is refused); an RDB server that does not answer
-    within :data:`STORAGE_TIMEOUT_S` is refused by name."""
-    optuna = _optuna()
-    if storage is not None and (not isinstance(storage, str) or not storage.strip()):
-        raise ValueError(f"--storage must be an Optuna storage URL or journal:PATH, got {storage!r}")
-    check_storage(storage, out)
-    if storage is None:
-        return f"sqlite:///{(out / 'study.db').resolve()}"
-    if storage.startswith("journal:"):
-        from optuna.storages.journal import JournalFileBackend
-
-        return optuna.storages.JournalStorage(JournalFileBackend(storage[len("journal:"):]))
-    scheme = storage.split("://", 1)[0] if "://" in storage else ""
-    if not scheme or scheme.split("+")[0] not in _RDB_SCHEMES:
-        raise ValueError(f"--storage {storage!r} is not an RDB URL (sqlite:///PATH, postgresql://..., mysql://...) "
-                         "or journal:PATH")
-    return _open_rdb(optuna, storage)
 
 
 @dataclass
@@ -349,16 +199,6 @@ def _objective(spec: StudySpec, seeds: np.ndarray, reference: np.ndarray, parall
     return objective
 
 
-@contextlib.contextmanager
-def _knowingly():
-    """Optuna's notes on what this module uses on purpose, silenced for the calls inside: the ``ExperimentalWarning``
-    of the multivariate TPE's ``group`` and of ``set_metric_names`` (features used as they are), and PED-ANOVA's
-    note that it looks for low ``target`` values (:func:`_importance`'s target is the negated score, for that)."""
-    optuna = _optuna()
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", optuna.exceptions.ExperimentalWarning)
-        warnings.filterwarnings("ignore", message=r".*low `target` values")
-        yield
 
 
 class _NoInterruptLogs(logging.Filter):
@@ -566,7 +406,7 @@ def work(spec: StudySpec, parallel: bool | None = None, progress: bool | None = 
     propagates; :func:`mend` retries the trial when the study is run again. A Ctrl-C cuts only a design's evaluation,
     never Optuna's writes to the storage (:class:`_Interrupts`)."""
     _optuna()
-    from agents.batch import episode_seeds
+    from agents.evaluation.batch import episode_seeds
     from pneunet_env.progress import progress as progress_bar
 
     study = open_study(spec)
@@ -639,7 +479,7 @@ def run_study(spec: StudySpec, progress: bool | None = None, log=print) -> dict[
     report: the best designs re-scored on held-out objects, and every output file.
 
     First the study is mended (:func:`mend`: what a dead or interrupted process left is failed and retried). With
-    ``--jobs``, the workers run under :func:`agents.workers.run_jobs`: a worker that dies is noticed at once, the
+    ``--jobs``, the workers run under :func:`agents.common.workers.run_jobs`: a worker that dies is noticed at once, the
     trial it ran is marked failed, the other workers are stopped as Ctrl-C stops them (their trials marked failed
     too), and a ``SystemExit`` says so in one line; the same command retries them all. Ctrl-C: ``KeyboardInterrupt``
     with a note naming the trials to be retried."""
@@ -686,7 +526,7 @@ def _retry_note(trials: list[int]) -> str:
 
 def _work_in_processes(spec: StudySpec, study) -> None:
     """``spec.jobs`` worker processes on ``study`` (see :func:`run_study`)."""
-    from agents.workers import run_jobs
+    from agents.common.workers import run_jobs
 
     failed: dict[int, list[int]] = {}
 
@@ -748,7 +588,7 @@ def _pareto(points: np.ndarray) -> np.ndarray:
 
 def report(spec: StudySpec, search_s: float = math.nan, progress: bool | None = None, log=print) -> dict[str, Any]:
     """The study's results: top designs (and Table 1) on held-out objects; ``design.json`` and the figures."""
-    from agents.batch import episode_seeds
+    from agents.evaluation.batch import episode_seeds
 
     study = open_study(spec)
     scored = _trial_scores(study)

@@ -2,7 +2,7 @@
 
 ``pneunet-grasp bench speed --backend numba numpy torch --device cpu cuda`` (what :func:`run_sweep` measures): for
 every backend (and, for torch, every device) and every N, the env-steps per second of
-``gym.make_vec("PneuNetGrasp-v0", num_envs=N, backend=..., device=...)`` stepped with the same seeded random actions
+``gym.make_vec("PneuNetGrasp-v1", num_envs=N, backend=..., device=...)`` stepped with the same seeded random actions
 (through its autoresets), beside Gymnasium's ``CartPoleVectorEnv`` at the same N, and:
 
 * the speedup over the numba backend at the same N (when numba was measured);
@@ -50,7 +50,7 @@ def _measure(backend: str, device, n: int, steps: int, seed: int, compile: bool)
         import torch
 
         torch.cuda.reset_peak_memory_stats()
-    env = gym.make_vec("PneuNetGrasp-v0", num_envs=n, **kw)
+    env = gym.make_vec("PneuNetGrasp-v1", num_envs=n, **kw)
     rng = np.random.default_rng(seed + n)
     acts = rng.uniform(-1.0, 1.0, (steps + 1, n, 1)).astype(np.float32)
     if backend == "torch":
@@ -151,7 +151,7 @@ def format_sweep(res: dict[str, Any]) -> str:
     """The printed table."""
     m = res["machine"]
     layer = f", numba {m['numba_threads']} threads, layer {m['threading_layer']}" if m.get("numba") else ""
-    head = (f"PneuNetGrasp-v0 vector env by backend ({m['cpus']} CPUs{layer}"
+    head = (f"PneuNetGrasp-v1 vector env by backend ({m['cpus']} CPUs{layer}"
             + (f", GPU {m['gpu']}" if "gpu" in m else "") + ")")
     lines = [head, "",
              f"{'backend':<26}{'N':>9}{'env-steps/s':>14}{'CartPoleVec':>14}{'ratio':>8}{'vs numba':>10}"
@@ -182,7 +182,7 @@ def plot_sweep(res: dict[str, Any], path: Path) -> None:
     m = res["machine"]
     ax.set_xlabel("number of envs N")
     ax.set_ylabel("env-steps per second")
-    ax.set_title(f"PneuNetGrasp-v0 by backend: {m['cpus']} CPUs" + (f", {m['gpu']}" if "gpu" in m else ""),
+    ax.set_title(f"PneuNetGrasp-v1 by backend: {m['cpus']} CPUs" + (f", {m['gpu']}" if "gpu" in m else ""),
                  fontsize=10)
     ax.grid(True, which="major", alpha=0.3)
     ax.legend(fontsize=8)

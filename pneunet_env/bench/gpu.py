@@ -11,7 +11,7 @@ the free table, the step control, lean info):
 * **Speed.** Env-steps/s at N = 2^16, 2^20, 2^22 under random actions and the best blind ramp
   (:func:`pneunet_env.bench.speed.ramp_policy`'s formula, on the device): the kernel alone
   (:class:`~pneunet_env.fused_cuda.DeviceStep` on the state, no env: its launch, outputs and ``_keep_where``), and
-  end to end through the VectorEnv API (``gym.make_vec("PneuNetGrasp-v0", num_envs=N, backend="torch",
+  end to end through the VectorEnv API (``gym.make_vec("PneuNetGrasp-v1", num_envs=N, backend="torch",
   device="cuda")``: autoreset, info), each timed after a warm-up over steps that take at least
   :data:`MIN_SECONDS` (``torch.cuda.synchronize`` before reading the clock); the solves that failed, counted.
   Target (issue 35): at least 1 G env-steps/s at N = 2^22 under the ramp, end to end.
@@ -219,7 +219,7 @@ def speed(device, n: int, min_seconds: float, min_steps: int, deadline: float) -
     import torch
 
 
-    env = gym.make_vec("PneuNetGrasp-v0", num_envs=n, backend="torch", device=device, kernel=True)
+    env = gym.make_vec("PneuNetGrasp-v1", num_envs=n, backend="torch", device=device, kernel=True)
     core = env.unwrapped
     ramp = torch_ramp(core.config)
     gen = torch.Generator(device=device).manual_seed(0)

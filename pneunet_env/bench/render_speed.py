@@ -1,12 +1,12 @@
-"""Rendering speed: ``env.step`` + ``env.render()`` frames per second, PneuNetGrasp-v0 against CartPole-v1.
+"""Rendering speed: ``env.step`` + ``env.render()`` frames per second, PneuNetGrasp-v1 against CartPole-v1.
 
 What it measures (one process, one after the other, in alternating rounds so that drifts of the machine hit
 both): the wall time of ``env.step(action); env.render()`` pairs of ``gym.make(ENV, render_mode="rgb_array")``
-(default wrappers, the default frame size: 480 x 360 for PneuNetGrasp-v0, 600 x 400 for CartPole-v1), each pair
+(default wrappers, the default frame size: 480 x 360 for PneuNetGrasp-v1, 600 x 400 for CartPole-v1), each pair
 timed alone (``time.perf_counter``), resets outside the timing. Frames per second are ``frames`` over the summed
 time of a round; the best round of ``repeats`` is kept (other processes on the machine only ever slow a round).
 
-Actions are drawn up front: PneuNetGrasp-v0 squeezes (``+1``, the largest pressure increase) for the first 20
+Actions are drawn up front: PneuNetGrasp-v1 squeezes (``+1``, the largest pressure increase) for the first 20
 steps of each episode, so that frames show the actuator curling, contact and damage, then draws uniformly from
 its action space; CartPole-v1 draws from its action space.
 
@@ -26,7 +26,7 @@ import numpy as np
 __all__ = ["bench_render", "main", "TARGET_FRAMES_PER_S"]
 
 TARGET_FRAMES_PER_S = 300.0
-"""The target: PneuNetGrasp-v0's step + render frames per second at the default 480 x 360."""
+"""The target: PneuNetGrasp-v1's step + render frames per second at the default 480 x 360."""
 
 _SQUEEZE_STEPS = 20
 
@@ -34,7 +34,7 @@ _SQUEEZE_STEPS = 20
 def _make(env_id: str):
     import gymnasium as gym
 
-    import pneunet_env  # noqa: F401  (registers PneuNetGrasp-v0)
+    import pneunet_env  # noqa: F401  (registers PneuNetGrasp-v1)
 
     return gym.make(env_id, render_mode="rgb_array")
 
@@ -69,16 +69,16 @@ def _round(env, actions: list, seed: int, squeeze: bool) -> tuple[float, tuple[i
 
 
 def bench_render(frames: int = 300, repeats: int = 3, seed: int = 0) -> dict[str, Any]:
-    """Step + render frames per second of PneuNetGrasp-v0 and of CartPole-v1, measured in the same run.
+    """Step + render frames per second of PneuNetGrasp-v1 and of CartPole-v1, measured in the same run.
 
     Returns ``pneunet_frames_per_s``, ``cartpole_frames_per_s`` (``None`` without pygame, with
-    ``cartpole_error``), ``ratio`` (PneuNetGrasp-v0 over CartPole-v1), the frame shapes, ``frames``, ``repeats``
+    ``cartpole_error``), ``ratio`` (PneuNetGrasp-v1 over CartPole-v1), the frame shapes, ``frames``, ``repeats``
     and ``target_frames_per_s``.
     """
     frames, repeats = int(frames), int(repeats)
     if frames < 1 or repeats < 1:
         raise ValueError(f"frames and repeats must be >= 1, got {frames} and {repeats}")
-    envs: dict[str, Any] = {"PneuNetGrasp-v0": _make("PneuNetGrasp-v0")}
+    envs: dict[str, Any] = {"PneuNetGrasp-v1": _make("PneuNetGrasp-v1")}
     error = None
     try:
         cartpole = _make("CartPole-v1")
@@ -91,20 +91,20 @@ def bench_render(frames: int = 300, repeats: int = 3, seed: int = 0) -> dict[str
     best: dict[str, float] = {}
     shapes: dict[str, tuple[int, ...]] = {}
     for name, env in envs.items():  # a round of warm-up each (first frames build caches)
-        _round(env, actions[name][: min(frames, 20)], seed, squeeze=name == "PneuNetGrasp-v0")
+        _round(env, actions[name][: min(frames, 20)], seed, squeeze=name == "PneuNetGrasp-v1")
     for _ in range(repeats):
         for name, env in envs.items():
-            seconds, shapes[name] = _round(env, actions[name], seed, squeeze=name == "PneuNetGrasp-v0")
+            seconds, shapes[name] = _round(env, actions[name], seed, squeeze=name == "PneuNetGrasp-v1")
             best[name] = max(best.get(name, 0.0), frames / seconds)
     for env in envs.values():
         env.close()
-    pn = best["PneuNetGrasp-v0"]
+    pn = best["PneuNetGrasp-v1"]
     cp = best.get("CartPole-v1")
     return {
         "frames": frames,
         "repeats": repeats,
         "pneunet_frames_per_s": pn,
-        "pneunet_frame_shape": list(shapes["PneuNetGrasp-v0"]),
+        "pneunet_frame_shape": list(shapes["PneuNetGrasp-v1"]),
         "cartpole_frames_per_s": cp,
         "cartpole_frame_shape": list(shapes["CartPole-v1"]) if cp is not None else None,
         "cartpole_error": error,
@@ -130,14 +130,14 @@ def run(args: argparse.Namespace) -> int:
     """``pneunet-grasp bench render``: frames/s of step + render, against CartPole measured in the same run."""
     r = bench_render(args.frames, args.repeats)
     h, w, _ = r["pneunet_frame_shape"]
-    print(f"PneuNetGrasp-v0 step + render ({w} x {h}): {r['pneunet_frames_per_s']:8.1f} frames/s "
+    print(f"PneuNetGrasp-v1 step + render ({w} x {h}): {r['pneunet_frames_per_s']:8.1f} frames/s "
           f"(target >= {r['target_frames_per_s']:.0f})")
     if r["cartpole_frames_per_s"] is None:
         print(f"CartPole-v1 step + render: not measured ({r['cartpole_error']})")
     else:
         h, w, _ = r["cartpole_frame_shape"]
         print(f"CartPole-v1     step + render ({w} x {h}): {r['cartpole_frames_per_s']:8.1f} frames/s")
-        print(f"ratio PneuNetGrasp-v0 / CartPole-v1: {r['ratio']:.2f}")
+        print(f"ratio PneuNetGrasp-v1 / CartPole-v1: {r['ratio']:.2f}")
     print(f"(best of {r['repeats']} rounds of {r['frames']} frames)")
     return 0
 

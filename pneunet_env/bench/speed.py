@@ -2,13 +2,13 @@
 
 What it measures (all in one process, one after the other, on whatever machine runs it):
 
-* **Single env.** The median wall time of one ``env.step`` through ``gym.make("PneuNetGrasp-v0")`` and through
+* **Single env.** The median wall time of one ``env.step`` through ``gym.make("PneuNetGrasp-v1")`` and through
   ``gym.make("CartPole-v1")`` (default wrappers: order enforcing, passive checker, time limit), actions drawn
   up front from the action space, each step timed alone (``time.perf_counter``), resets outside the timing;
   the two are measured in alternating rounds so that drifts of the machine hit both; each env is also timed
   unwrapped (``env.unwrapped.step``). Target: ratio <= 0.8 (issue 23's; it was 2).
 * **Vector env.** Env-steps per second (``N`` times steps over the wall time of the step loop, auto-resets
-  included) of ``gym.make_vec("PneuNetGrasp-v0", num_envs=N)`` (``PneuNetGraspVectorEnv``)
+  included) of ``gym.make_vec("PneuNetGrasp-v1", num_envs=N)`` (``PneuNetGraspVectorEnv``)
   and of ``gym.make_vec("CartPole-v1", num_envs=N)`` (Gymnasium's ``CartPoleVectorEnv``) at N = 1, 64,
   1,024 and 16,384, actions drawn up front; the best of a few repeats. Targets at N = 16,384: >= 1,000,000, and
   (issue 23) at least 0.15x CartPoleVectorEnv with random actions, 0.33x with the best blind ramp.
@@ -121,7 +121,7 @@ def _check_steps(env, actions, acc: _Accuracy) -> None:
 
 
 def bench_single(steps: int, rounds: int, seed: int = 0, acc: _Accuracy | None = None) -> dict[str, Any]:
-    """Median ``env.step`` time of ``gym.make("PneuNetGrasp-v0")`` and ``gym.make("CartPole-v1")``, and of each
+    """Median ``env.step`` time of ``gym.make("PneuNetGrasp-v1")`` and ``gym.make("CartPole-v1")``, and of each
     env unwrapped (``env.unwrapped.step``: Gymnasium's default wrappers' share apart). Each round times the same
     actions from the same seed on both, and then (untimed) reads the accuracy of those steps into ``acc``."""
     import gymnasium as gym
@@ -129,7 +129,7 @@ def bench_single(steps: int, rounds: int, seed: int = 0, acc: _Accuracy | None =
     import pneunet_env  # noqa: F401  (registers the environment)
 
     acc = _Accuracy() if acc is None else acc
-    envs = {"PneuNetGrasp-v0": gym.make("PneuNetGrasp-v0"), "CartPole-v1": gym.make("CartPole-v1")}
+    envs = {"PneuNetGrasp-v1": gym.make("PneuNetGrasp-v1"), "CartPole-v1": gym.make("CartPole-v1")}
     times: dict[str, list[np.ndarray]] = {k: [] for k in envs}
     bare: dict[str, list[np.ndarray]] = {k: [] for k in envs}
     for env in envs.values():  # warm up (the first numba call compiles; caches)
@@ -144,7 +144,7 @@ def bench_single(steps: int, rounds: int, seed: int = 0, acc: _Accuracy | None =
             times[name].append(_time_steps(env, actions))
             env.reset(seed=seed + r)
             bare[name].append(_time_steps(env.unwrapped, actions))
-            if name == "PneuNetGrasp-v0":
+            if name == "PneuNetGrasp-v1":
                 env.reset(seed=seed + r)
                 _check_steps(env, actions, acc)
     for env in envs.values():
@@ -156,7 +156,7 @@ def bench_single(steps: int, rounds: int, seed: int = 0, acc: _Accuracy | None =
         "median_step_s": med,
         "mean_step_s": {k: float(np.mean(np.concatenate(v))) for k, v in times.items()},
         "median_unwrapped_step_s": {k: float(np.median(np.concatenate(v))) for k, v in bare.items()},
-        "ratio": med["PneuNetGrasp-v0"] / med["CartPole-v1"],
+        "ratio": med["PneuNetGrasp-v1"] / med["CartPole-v1"],
     }
 
 
@@ -165,7 +165,7 @@ def bench_single(steps: int, rounds: int, seed: int = 0, acc: _Accuracy | None =
 # --------------------------------------------------------------------------------------------------------
 
 
-RAMP_TARGET_KPA = 33.9
+RAMP_TARGET_KPA = 35.1
 """The ramp workload's target: the default task's best blind ramp (``agents/best_ramp.json``, found by
 ``pneunet-grasp search``; a test keeps the two equal). The library does not read ``agents``' files."""
 RAMP_STEPS = 20
@@ -177,8 +177,8 @@ end early), and the best blind ramp (what users run: a grasp, then the pressure 
 
 def ramp_policy(config=None, target_kpa: float = RAMP_TARGET_KPA, n_steps: int = RAMP_STEPS):
     """The best blind ramp as a function of a batch of observations ``(N, 1 or 2)`` -> float32 actions ``(N, 1)``:
-    the same formula as ``agents.scripted.LinearRamp`` (raise ``p/p_max`` by ``target / n_steps`` a step, then hold
-    it), written here so that the benchmark needs nothing from ``agents``."""
+    the same formula as ``agents.policies.scripted.LinearRamp`` (raise ``p/p_max`` by ``target / n_steps`` a step, then
+    hold it), written here so that the benchmark needs nothing from ``agents``."""
     from pneunet_env.config import EnvConfig
 
     task = (EnvConfig() if config is None else config).task
@@ -293,7 +293,7 @@ def bench_vector(num_envs: tuple[int, ...], env_steps: int, min_steps: int, repe
 
     With ``compare`` (and numba), at the largest N the same workloads also run in each of :data:`VARIANTS` (without
     the free actuator's table, :data:`CONTINUATION`; with the step control "jump", :data:`JUMP`), in the same
-    rounds: ``steps_per_s["PneuNetGrasp-v0 <workload>, <variant>"]``, ``ratio_<variant>`` and
+    rounds: ``steps_per_s["PneuNetGrasp-v1 <workload>, <variant>"]``, ``ratio_<variant>`` and
     ``workload_<variant>``."""
     import gymnasium as gym
 
@@ -308,16 +308,16 @@ def bench_vector(num_envs: tuple[int, ...], env_steps: int, min_steps: int, repe
     for n in num_envs:
         steps = int(max(min_steps, min(4000, env_steps // n)))
         rng = np.random.default_rng(seed + n)
-        pn = gym.make_vec("PneuNetGrasp-v0", num_envs=n, backend=backend)
+        pn = gym.make_vec("PneuNetGrasp-v1", num_envs=n, backend=backend)
         cp = gym.make_vec("CartPole-v1", num_envs=n)
         pn_actions = rng.uniform(-1.0, 1.0, (steps, n, 1)).astype(np.float32)
         cp_actions = rng.integers(0, 2, (steps, n))
-        runs = [(f"PneuNetGrasp-v0 {p}", pn, pn_actions, ramp if p == "ramp" else None) for p in policies]
+        runs = [(f"PneuNetGrasp-v1 {p}", pn, pn_actions, ramp if p == "ramp" else None) for p in policies]
         variant = compare and n == max(num_envs) and getattr(pn.unwrapped, "fused", False) and HAVE_NUMBA
         variants = VARIANTS if variant else {}
-        others = {v: gym.make_vec("PneuNetGrasp-v0", num_envs=n, backend=backend, **kw) for v, kw in variants.items()}
+        others = {v: gym.make_vec("PneuNetGrasp-v1", num_envs=n, backend=backend, **kw) for v, kw in variants.items()}
         for v, env_v in others.items():
-            runs += [(f"PneuNetGrasp-v0 {p}, {v}", env_v, pn_actions, ramp if p == "ramp" else None)
+            runs += [(f"PneuNetGrasp-v1 {p}, {v}", env_v, pn_actions, ramp if p == "ramp" else None)
                      for p in policies]
         runs.append(("CartPole-v1", cp, cp_actions, None))
         rates: dict[str, list[float]] = {name: [] for name, *_ in runs}
@@ -335,7 +335,7 @@ def bench_vector(num_envs: tuple[int, ...], env_steps: int, min_steps: int, repe
                 [pn_actions, rng.uniform(-1.0, 1.0, (WORKLOAD_MIN_STEPS - steps, n, 1)).astype(np.float32)])
             for p in policies:
                 for v, kw in {None: {}, **variants}.items():
-                    full = gym.make_vec("PneuNetGrasp-v0", num_envs=n, backend=backend, info_level="full", **kw)
+                    full = gym.make_vec("PneuNetGrasp-v1", num_envs=n, backend=backend, info_level="full", **kw)
                     obs, _ = full.reset(seed=seed)
                     work = _Work(acc)
                     _vector_run(full, w_actions, work, ramp if p == "ramp" else None, obs)
@@ -353,13 +353,13 @@ def bench_vector(num_envs: tuple[int, ...], env_steps: int, min_steps: int, repe
             "steps": steps,
             "repeats": repeats,
             "steps_per_s": best,
-            "ratio": {p: best[f"PneuNetGrasp-v0 {p}"] / cart for p in policies},
+            "ratio": {p: best[f"PneuNetGrasp-v1 {p}"] / cart for p in policies},
             "time_per_step_s": {k: n / v for k, v in best.items()},
             "state_bytes_per_env": state_bytes / n,
             "workload": workloads,
         }
         for v in variants:
-            row[f"ratio_{v}"] = {p: best[f"PneuNetGrasp-v0 {p}, {v}"] / cart for p in policies}
+            row[f"ratio_{v}"] = {p: best[f"PneuNetGrasp-v1 {p}, {v}"] / cart for p in policies}
             row[f"workload_{v}"] = workloads_v[v]
         rows.append(row)
         if progress is not None:
@@ -448,7 +448,7 @@ def bench_memory(num_envs: int, steps: int, seed: int = 0, backend: str = "auto"
     tracemalloc.start()
     try:
         base, _ = tracemalloc.get_traced_memory()
-        env = gym.make_vec("PneuNetGrasp-v0", num_envs=num_envs, backend=backend)
+        env = gym.make_vec("PneuNetGrasp-v1", num_envs=num_envs, backend=backend)
         env.reset(seed=seed)
         for a in actions:
             env.step(a)
@@ -528,7 +528,7 @@ def format_table(res: dict[str, Any]) -> str:
     s = res["single_env"]
     m = res["machine"]
     lines = [
-        f"PneuNetGrasp-v0 speed ({'quick' if res['quick'] else 'full'} run; backend {res['backend']}; "
+        f"PneuNetGrasp-v1 speed ({'quick' if res['quick'] else 'full'} run; backend {res['backend']}; "
         f"{m['cpus']} CPUs; numpy {m['numpy']}, gymnasium {m['gymnasium']}, numba {m['numba']}; threading layer "
         f"{m.get('threading_layer') or 'none run'})",
         "",
@@ -545,7 +545,7 @@ def format_table(res: dict[str, Any]) -> str:
     for row in res["vector_env"]:
         r, q = row["steps_per_s"], row["ratio"]
         cells = [f"{_fmt_rate(r[k]):>12}" if k in r else f"{'-':>12}"
-                 for k in ("PneuNetGrasp-v0 random", "PneuNetGrasp-v0 ramp")]
+                 for k in ("PneuNetGrasp-v1 random", "PneuNetGrasp-v1 ramp")]
         ratios = [f"{q[p]:>12.3f}" if p in q else f"{'-':>12}" for p in ("random", "ramp")]
         lines.append(f"  {row['num_envs']:>6}  {cells[0]}  {cells[1]}  {_fmt_rate(r['CartPole-v1']):>18}  "
                      f"{ratios[0]}  {ratios[1][2:]}")
@@ -563,7 +563,7 @@ def format_table(res: dict[str, Any]) -> str:
         r, q, qv = last["steps_per_s"], last["ratio"], last[f"ratio_{v}"]
         lines += ["", heading]
         for p in qv:
-            default, variant = r[f"PneuNetGrasp-v0 {p}"], r[f"PneuNetGrasp-v0 {p}, {v}"]
+            default, variant = r[f"PneuNetGrasp-v1 {p}"], r[f"PneuNetGrasp-v1 {p}, {v}"]
             factor = default / variant if inverse else variant / default
             lines.append(f"  {p:<8}{_fmt_rate(default):>12} ({q[p]:.3f}x)  {word:<7} {_fmt_rate(variant):>12} "
                          f"({qv[p]:.3f}x)   {factor:.2f}{unit}")
@@ -624,7 +624,7 @@ def plot(res: dict[str, Any], path: Path) -> None:
     pn_c, cp_c = "#c0392b", "#2c6fbb"
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 4.4), gridspec_kw={"width_ratios": [1, 1.6]})
     s = res["single_env"]["median_step_s"]
-    names = ["PneuNetGrasp-v0", "CartPole-v1"]
+    names = ["PneuNetGrasp-v1", "CartPole-v1"]
     vals = [s[n] * 1e6 for n in names]
     bars = ax1.bar(names, vals, color=[pn_c, cp_c], width=0.6)
     for b, v in zip(bars, vals, strict=True):
@@ -641,8 +641,8 @@ def plot(res: dict[str, Any], path: Path) -> None:
     rows = res["vector_env"]
     n = np.array([r["num_envs"] for r in rows])
     cp = np.array([r["steps_per_s"]["CartPole-v1"] for r in rows])
-    workloads = [p for p in POLICIES if all(f"PneuNetGrasp-v0 {p}" in r["steps_per_s"] for r in rows)]
-    pn = np.array([[r["steps_per_s"][f"PneuNetGrasp-v0 {p}"] for r in rows] for p in workloads]).reshape(-1, len(n))
+    workloads = [p for p in POLICIES if all(f"PneuNetGrasp-v1 {p}" in r["steps_per_s"] for r in rows)]
+    pn = np.array([[r["steps_per_s"][f"PneuNetGrasp-v1 {p}"] for r in rows] for p in workloads]).reshape(-1, len(n))
     for j, p in enumerate(workloads):
         ax2.loglog(n, pn[j], "o-" if p == "random" else "D--", color=pn_c, label=f"PneuNetGraspVectorEnv, {p}")
     ax2.loglog(n, cp, "s-", color=cp_c, label="CartPoleVectorEnv")
@@ -673,7 +673,7 @@ def plot(res: dict[str, Any], path: Path) -> None:
     a = res["accuracy"]
     m = res["machine"]
     fig.suptitle(
-        f"PneuNetGrasp-v0 speed, {m['cpus']} CPUs, backend {res['backend']}: every one of {a['solves']:,} solves "
+        f"PneuNetGrasp-v1 speed, {m['cpus']} CPUs, backend {res['backend']}: every one of {a['solves']:,} solves "
         f"{'converged' if a['converged_fraction'] == 1 else 'NOT all converged'}, worst |∇U| = "
         f"{a['worst_gradient_norm']:.1e}", fontsize=10,
     )

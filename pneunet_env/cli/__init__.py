@@ -43,21 +43,22 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "figures": ("pneunet_env.paper.command", "regenerate the paper's figures (PNG + CSV) and check its statements"),
     "bench speed": ("pneunet_env.bench.speed", "speed benchmark against CartPole (table, JSON, PNG)"),
     "bench solvers": ("pneunet_env.bench.solvers", "solver study: speed vs accuracy, stability map"),
-    "bench design": ("agents.bench_design", "what a design study costs: one design evaluation, and the batched "
+    "bench design": ("agents.bench.design", "what a design study costs: one design evaluation, and the batched "
                      "search against the episode loop"),
     "bench gpu": ("pneunet_env.bench.gpu", "the fused step's CUDA kernel on a GPU: agreement with the CPU, env-steps/s "
                   "at N = 2^16..2^22 (JSON, PNG; extra: gpu)"),
     "bench render": ("pneunet_env.bench.render_speed", "rgb_array frames/s (step + render) against CartPole"),
-    "bench train": ("agents.bench_train", "PPO training steps/s on the env (the shipped config) against the same PPO "
+    "bench train": ("agents.bench.train", "PPO training steps/s on the env (the shipped config) against the same PPO "
                     "on CartPole"),
-    "evaluate": ("agents.evaluate", "evaluate policies over a stiffness grid (table, JSON, PNGs)"),
-    "train": ("agents.train", "train an SB3 agent from a YAML config"),
-    "train-skrl": ("agents.train_skrl", "train skrl's PPO on the torch backend, on its device (extra: skrl)"),
-    "search": ("agents.search", "tune the blind best-ramp (or rigid) schedule; --sensitivity runs the threshold study"),
+    "evaluate": ("agents.evaluation.evaluate_cli", "evaluate policies over a stiffness grid (table, JSON, PNGs)"),
+    "train": ("agents.training.cli", "train an SB3 agent from a YAML config"),
+    "train-skrl": ("agents.training.skrl_ppo", "train skrl's PPO on the torch backend, on its device (extra: skrl)"),
+    "search": ("agents.search.cli", "tune the blind best-ramp (or rigid) schedule; --sensitivity runs the threshold "
+               "study"),
     "design": ("agents.design", "design the actuator: which walls and elastomer let one blind ramp hold a use case "
                "(Optuna; extra: design)"),
-    "map": ("agents.maps", "chart success over object modulus x radius: oracle, best blind ramp, rigid jaw, "
-            "with the regime boundary"),
+    "map": ("agents.evaluation.map_cli", "chart success over object modulus x radius: oracle, best blind ramp, "
+            "rigid jaw, with the regime boundary"),
 }
 
 # group -> one-line help; a group's sub-commands are the COMMANDS named "GROUP SUB"
@@ -398,7 +399,7 @@ def _resolve_config(args: argparse.Namespace, name: str) -> None:
     from pneunet_env.arguments import check_input_path
 
     check_input_path(config, "--config")  # a FIFO, a device, a too-long path: refused by name, not "no such file"
-    from agents.resources import is_name, resolve_config
+    from agents.common.resources import is_name, resolve_config
 
     if is_name(config):
         args.config_given = config

@@ -1,7 +1,7 @@
 """``pneunet-grasp demo``: the main job. The best blind pressure ramp against real objects, with the oracle (which
 knows each object) and a blind rigid gripper beside it: success by regime and by object class, policy by policy.
 
-**The default task** (``--task default``): ``--objects`` objects drawn by ``PneuNetGrasp-v0`` itself (the kitchen
+**The default task** (``--task default``): ``--objects`` objects drawn by ``PneuNetGrasp-v1`` itself (the kitchen
 use case of the object catalogue: apple, kiwifruit, soft cheese, gelatin), the same seeds for every policy. Each
 object's regime is read off the mechanics (:mod:`pneunet_env.physics.regimes`: force-controlled when it yields
 more than half of the free actuator's curvature beyond its surface at 60 kPa, position-controlled otherwise).
@@ -17,18 +17,18 @@ to the default task: given to the other task, each is an error (exit status 2) t
   blind schedule, tuned once over the object distribution, the same for every object (the output names the file
   and what it was tuned on; a config whose objects no shipped schedule was tuned for gets a warning on stderr
   with the ``pneunet-grasp search`` command that tunes one for them);
-* ``oracle``: knows the object and steps to the best constant pressure for it (:mod:`agents.oracle`): the
+* ``oracle``: knows the object and steps to the best constant pressure for it (:mod:`agents.policies.oracle`): the
   feasibility ceiling, not a blind policy;
 * ``rigid``: a rigid, position-controlled gripper closing to a fixed indentation, tuned like best-ramp
-  (``RigidGrasp-v0``, :mod:`pneunet_env.envs.rigid`).
+  (``RigidGrasp-v1``, :mod:`pneunet_env.envs.rigid`).
 
 ``--targets-kpa`` adds plain linear ramps (to each target over ``--ramp-steps`` steps). Everything else is the
 environment's config: the task's objects, the damage and slip thresholds of ``docs/env.md`` (the header prints
 them: the damage rule is the config's ``damage_rule``, whichever the task); ``--config PATH`` and ``--set KEY=VALUE``
 (repeatable, VALUE is YAML, on top of ``--config`` and of the paper task's settings) change it. A schedule shipped
 beside the config file, ``DIR/NAME.best_ramp.json`` (``DIR/NAME.best_rigid.json`` for ``rigid``) beside
-``DIR/NAME.yaml``, replaces the package's, with or without ``--set`` (:func:`agents.policies.tuned_path`). ``--json``
-saves every episode. ``pneunet-grasp evaluate`` makes the plots.
+``DIR/NAME.yaml``, replaces the package's, with or without ``--set`` (:func:`agents.policies.registry.tuned_path`).
+``--json`` saves every episode. ``pneunet-grasp evaluate`` makes the plots.
 """
 
 from __future__ import annotations
@@ -57,7 +57,7 @@ PROG = "pneunet-grasp demo"
 
 def _check_task_options(args: argparse.Namespace) -> None:
     """Fill the task's defaults; an option of the other task, given, is an argument error naming ``--task``."""
-    from agents.evaluate import usage_error
+    from agents.common.cli import usage_error
 
     paper = [flag for flag, _, _ in PAPER_OPTIONS if getattr(args, _dest(flag)) is not None]
     if args.task == "default" and paper:
@@ -110,19 +110,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from agents.evaluate import (
-        SOFT_MAX,
-        STIFF_MIN,
-        damage_rule_text,
-        parse_overrides,
-        rate_parts,
-        run_episode,
-        slip_rule_text,
-        task_description,
-        usage_error,
-    )
-    from agents.oracle import feasible_stiffness
-    from agents.policies import make_policy, tuned_schedules_text, warn_untuned
+    from agents.common.cli import parse_overrides, usage_error
+    from agents.common.regimes import SOFT_MAX, STIFF_MIN
+    from agents.common.words import damage_rule_text, rate_parts, slip_rule_text, task_description
+    from agents.evaluation.episodes import run_episode
+    from agents.policies.oracle import feasible_stiffness
+    from agents.policies.registry import make_policy, tuned_schedules_text, warn_untuned
     from pneunet_env import PAPER_TASK
     from pneunet_env.config import load_config
     from pneunet_env.objects import stiffness_per_modulus
@@ -210,7 +203,7 @@ def run(args: argparse.Namespace) -> int:
     if cfg.task.damage_rule == "crush_fraction" and not cfg.objects.from_catalogue:  # the bound assumes this rule
         k_feas = feasible_stiffness(cfg)
         print(f"\nBelow k~ = {k_feas:.2g} (mu_obj = {k_feas / unit_mu:.3g} kPa) no state of any gripper both holds "
-              "the object and spares it: the grip needs F = k_obj delta >= rho g H / (faces mu_f), which takes an "
+              "the object and spares it: the grip needs F = k_obj delta >= its grip traction, which takes an "
               "indentation past the crush depth. See docs/results-paper.md.")
     print(f"\n{len(results)} episodes in {elapsed:.1f} s")
     if args.json is not None:
@@ -251,16 +244,10 @@ def _outcome(rs) -> str:
 
 def _run_distribution(args: argparse.Namespace, cfg, entries) -> int:
     """The default task: objects drawn by the env; success by regime and by class, policy by policy."""
-    from agents.batch import policy_episodes
-    from agents.evaluate import (
-        HELD_OUT_SEED,
-        damage_rule_text,
-        object_regimes,
-        regime_text,
-        slip_rule_text,
-        task_description,
-    )
-    from agents.policies import tuned_schedules_text
+    from agents.common.regimes import object_regimes
+    from agents.common.words import damage_rule_text, regime_text, slip_rule_text, task_description
+    from agents.evaluation.batch import HELD_OUT_SEED, policy_episodes
+    from agents.policies.registry import tuned_schedules_text
     from pneunet_env.physics.regimes import REGIMES
 
     short = _short_names(e.name for e in entries)
@@ -269,14 +256,14 @@ def _run_distribution(args: argparse.Namespace, cfg, entries) -> int:
     t0 = time.perf_counter()
     bar = progress(total=len(entries) * len(seeds), desc="demo", unit="episode", enabled=args.progress)
     results: dict[str, list[dict]] = {}
-    for entry in entries:  # batched where the policy allows (agents.batch): the same episodes
+    for entry in entries:  # batched where the policy allows (agents.evaluation.batch): the same episodes
         results[entry.name] = policy_episodes(entry, cfg, seeds, bar=bar)
     bar.close()
     first = results[entries[0].name]
     reg = object_regimes([r["stiffness"] for r in first], [r["curvature"] for r in first], cfg)
     classes = [r["object_class"] for r in first]
     elapsed = time.perf_counter() - t0
-    print(f"PneuNetGrasp-v0 demo: {len(seeds)} objects drawn by the env from {task_description(cfg)}, the same "
+    print(f"PneuNetGrasp-v1 demo: {len(seeds)} objects drawn by the env from {task_description(cfg)}, the same "
           f"for every policy; {cfg.task.squeeze_steps} squeeze + {cfg.task.hold_steps} hold steps")
     print(f"{damage_rule_text(cfg)}; {slip_rule_text(cfg)}")
     print(f"{regime_text(cfg)}\n")

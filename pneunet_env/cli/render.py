@@ -1,9 +1,9 @@
 """``pneunet-grasp render``: save PNG frames (and a contact sheet) of episodes under a pressure ramp.
 
-For each object stiffness ``k~`` (``--stiffness``, several allowed), one episode of ``PneuNetGrasp-v0``
+For each object stiffness ``k~`` (``--stiffness``, several allowed), one episode of ``PneuNetGrasp-v1``
 (``--env PneuNetGrasp-Paper-v0``: the paper's task, its 250 mm ring) is run with the object pinned and the
-scripted :class:`agents.scripted.LinearRamp` to ``--target`` of ``p_max`` over ``--steps`` steps; every frame is
-saved as ``OUT/frames/k<K>_<step>.png`` and a contact sheet (one row per stiffness, ``--columns`` frames evenly
+scripted :class:`agents.policies.scripted.LinearRamp` to ``--target`` of ``p_max`` over ``--steps`` steps; every frame
+is saved as ``OUT/frames/k<K>_<step>.png`` and a contact sheet (one row per stiffness, ``--columns`` frames evenly
 spaced in time, over a legend of the colours) as ``OUT/sheet.png``. ``--object NAME ...`` instead runs one episode
 per catalogue class (the env draws its object from that class alone, ``class_weights: {NAME: 1}``, with the reset
 seed), frames ``OUT/frames/<NAME>_<step>.png``.
@@ -48,8 +48,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--columns", type=checks.integer(1, 100), default=6,
                         help="frames per stiffness on the sheet, 1 to 100 (default 6)")
     parser.add_argument("--config", default=None, help="environment config YAML (default: the built-in defaults)")
-    parser.add_argument("--env", default="PneuNetGrasp-v0", choices=("PneuNetGrasp-v0", "PneuNetGrasp-Paper-v0"),
-                        help="the environment (default PneuNetGrasp-v0; PneuNetGrasp-Paper-v0: the paper's ring)")
+    parser.add_argument("--env", default="PneuNetGrasp-v1", choices=("PneuNetGrasp-v1", "PneuNetGrasp-Paper-v0"),
+                        help="the environment (default PneuNetGrasp-v1; PneuNetGrasp-Paper-v0: the paper's ring)")
     parser.add_argument("--keep-going", action="store_true",
                         help="do not end the episode on damage or slip (flagged, drawn in red), to see the whole ramp")
     parser.add_argument("--width", type=int, default=None,
@@ -66,7 +66,7 @@ def run(args: argparse.Namespace) -> int:
     import gymnasium as gym
 
     import pneunet_env  # (registers the environment)
-    from agents.scripted import LinearRamp
+    from agents.policies.scripted import LinearRamp
     from pneunet_env.config import MAX_RENDER_PIXELS, load_config
     from pneunet_env.envs.render import LABEL_MIN_HEIGHT, LABEL_MIN_WIDTH, contact_sheet, save_png
 

@@ -1,4 +1,4 @@
-"""``PneuNetGrasp-v0``: a pneu-net actuator grasps an object of unknown stiffness, blind.
+"""``PneuNetGrasp-v1``: a pneu-net actuator grasps an object of unknown stiffness, blind.
 
 A thin shell around the pure step of :mod:`pneunet_env.task` (:func:`~pneunet_env.task.step` on scalars, with the
 Newton contact): the reset, the step and the state are the single envs' shared shell
@@ -123,9 +123,11 @@ class PneuNetGraspEnv(SingleGraspEnv):
     traction exceeds its failure stress ``sigma_f``, and *crushed* when the hoop strain ``delta kappa_obj`` of its
     indentation ``delta`` exceeds its failure strain ``eps_f`` (eq. 3.2's annulus: an indentation shrinks the whole
     ring). The paper task's rule (``damage_rule: crush_fraction``) is overstressed above ``3 eps_f mu_obj``, crushed
-    when ``delta > crush_fraction H``. **Slip** (hold phase only): the traction is below
-    ``rho g H / (grip_faces mu_f)``, the weight per unit contact area over the friction. See ``docs/env.md`` for
-    the physics of each threshold.
+    when ``delta > crush_fraction H``. **Slip** (hold phase only, ``hold_rule: weight``): friction on the fingers
+    cannot carry the object's weight, ``grip_faces mu_f F L_c b < m g``: the traction ``F`` over each finger's
+    contact (its length ``L_c``, at most the object's share of wrap, and its width ``b = t + 2 h_s``) against the
+    object's mass ``m`` from its 3D shape (a solid sphere of radius ``1/kappa_obj`` unless its class says otherwise).
+    See ``docs/env.md`` ("The hold rule") for the physics of each threshold.
 
     ## Starting State
 
@@ -147,6 +149,11 @@ class PneuNetGraspEnv(SingleGraspEnv):
 
     ## Version History
 
+    * v1 (0.14): the hold rule carries the object's weight in 3D (``hold_rule: weight``: a solid sphere's mass, or
+      a catalogue class's shape, on two fingers 90 mm long and ``t + 2 h_s`` wide, ``mu_f = 0.5``), not a slab of
+      depth ``H``; the info gains ``object_mass_g``, ``contact_length_mm`` and (full) ``grip_force_n``. The
+      traction a grip needs rose 2-30 times on the kitchen's objects, so success rates moved: the v0 ids keep the
+      slab rule (``hold_rule: slab``) to reproduce results of 0.13 and earlier.
     * v0 (0.6): the catalogue's apple is its flesh's Young's modulus only, 0.81-3.28 MPa, with its failure strain
       0.11-0.312 and stress 235-444 kPa (0.5's whole-fruit moduli are dropped): a seed draws other apples than
       under 0.5.
@@ -160,7 +167,7 @@ class PneuNetGraspEnv(SingleGraspEnv):
 
     ## Arguments
 
-    ``gym.make("PneuNetGrasp-v0", render_mode=None, config=None, info_level="lean", **overrides)``: ``config``
+    ``gym.make("PneuNetGrasp-v1", render_mode=None, config=None, info_level="lean", **overrides)``: ``config``
     is ``None`` (defaults), a dict (nested by section or flat), an :class:`~pneunet_env.config.EnvConfig` or a
     YAML path; ``overrides`` are config keys (``configs/env/default.yaml`` lists them all, with units). An
     unknown key or an invalid value raises ``ValueError`` naming it. If the config changes the episode length,
@@ -189,7 +196,7 @@ class PneuNetGraspEnv(SingleGraspEnv):
     picture in a matplotlib window (matplotlib is imported only then).
     """
 
-    env_id = "PneuNetGrasp-v0"
+    env_id = "PneuNetGrasp-v1"
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 20}
 
     def __init__(self, render_mode: str | None = None, config: Any = None, info_level: str = "lean",
@@ -258,7 +265,7 @@ class PneuNetGraspEnv(SingleGraspEnv):
         if self.render_mode is None:
             gym.logger.warn(
                 "You are calling render method without specifying any render mode. "
-                'Pass render_mode="rgb_array" or "human" to gym.make("PneuNetGrasp-v0", ...).'
+                'Pass render_mode="rgb_array" or "human" to gym.make("PneuNetGrasp-v1", ...).'
             )
             return None
         from pneunet_env.envs.render import HumanViewer, render_frame
@@ -268,7 +275,7 @@ class PneuNetGraspEnv(SingleGraspEnv):
         if self.render_mode == "rgb_array":
             return frame
         if self._viewer is None:
-            self._viewer = HumanViewer(title="PneuNetGrasp-v0", fps=self.metadata["render_fps"])
+            self._viewer = HumanViewer(title="PneuNetGrasp-v1", fps=self.metadata["render_fps"])
         self._viewer.show(frame)
         return None
 

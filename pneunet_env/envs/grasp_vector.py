@@ -1,6 +1,6 @@
-"""``PneuNetGrasp-v0`` natively batched: N grasps advanced together by one batched solve (no loop over envs).
+"""``PneuNetGrasp-v1`` natively batched: N grasps advanced together by one batched solve (no loop over envs).
 
-:class:`PneuNetGraspVectorEnv` is what ``gym.make_vec("PneuNetGrasp-v0", num_envs=N)`` returns. It runs the
+:class:`PneuNetGraspVectorEnv` is what ``gym.make_vec("PneuNetGrasp-v1", num_envs=N)`` returns. It runs the
 same rules as the single environment (:class:`pneunet_env.envs.grasp.PneuNetGraspEnv`), through the same pure
 functions of :mod:`pneunet_env.task` called on ``(N,)`` arrays instead of scalars (gymnax style: the single
 env is the N = 1 case), with a batched solve in place of the scalar one. Three back-ends: ``numba`` (the default
@@ -8,7 +8,7 @@ with numba: the whole step as one compiled loop, :func:`pneunet_env.fused.fused_
 with :func:`pneunet_env.physics.batched.solve_batch`) and ``torch`` (the same array step on tensors of a device,
 with the masked solver :mod:`pneunet_env.physics.masked`).
 
-It is, step for step, ``gym.make_vec("PneuNetGrasp-v0", num_envs=N, vectorization_mode="sync",
+It is, step for step, ``gym.make_vec("PneuNetGrasp-v1", num_envs=N, vectorization_mode="sync",
 vector_kwargs={"autoreset_mode": AutoresetMode.SAME_STEP})`` (N single envs) computed as arrays: the same
 observations, rewards, ends, info (Gymnasium's vector convention, a dict of ``(N,)`` arrays with ``_key``
 masks) and random objects, with episodes that end and auto-reset. With the numba back-end's fused step that holds
@@ -159,7 +159,7 @@ def _on_host(record):
 
 
 class PneuNetGraspVectorEnv(VectorEnv):
-    """N pneu-net grasps (``PneuNetGrasp-v0``) stepped together, with one batched quasi-static solve per step.
+    """N pneu-net grasps (``PneuNetGrasp-v1``) stepped together, with one batched quasi-static solve per step.
 
     ## Description
 
@@ -218,7 +218,7 @@ class PneuNetGraspVectorEnv(VectorEnv):
 
     ## Arguments
 
-    ``gym.make_vec("PneuNetGrasp-v0", num_envs=N, render_mode=None, config=None, **overrides)``, or
+    ``gym.make_vec("PneuNetGrasp-v1", num_envs=N, render_mode=None, config=None, **overrides)``, or
     ``PneuNetGraspVectorEnv(num_envs, ...)``:
 
     * ``config`` / ``overrides``: as for the single env (:func:`pneunet_env.config.load_config`), shared by all.
@@ -768,7 +768,7 @@ class PneuNetGraspVectorEnv(VectorEnv):
         if self.render_mode is None:
             gym.logger.warn(
                 "You are calling render method without specifying any render mode. "
-                'Pass render_mode="rgb_array" to gym.make_vec("PneuNetGrasp-v0", ...).'
+                'Pass render_mode="rgb_array" to gym.make_vec("PneuNetGrasp-v1", ...).'
             )
             return None
         from pneunet_env.envs.render import render_frame

@@ -1,4 +1,4 @@
-"""``RigidGrasp-v0``: a rigid, position-controlled gripper faces the objects of ``PneuNetGrasp-v0``, blind.
+"""``RigidGrasp-v1``: a rigid, position-controlled gripper faces the objects of ``PneuNetGrasp-v1``, blind.
 
 The comparison the seed paper's introduction makes in words, made measurable: the same objects, the same
 damage and slip criteria, the same episode, the same reward; only the hand differs. It is an environment
@@ -26,8 +26,9 @@ pneu-net's step). There is no force limit.
 ## Action Space
 
 ``Box(-1, 1, (1,), float32)``: the closure change in units of ``jaw_step_mm``, then clipped to
-``[0, jaw_travel_mm]``: the exact analogue of the pneu-net's pressure change, so :class:`agents.scripted.LinearRamp`
-and :class:`agents.scripted.StepPolicy` drive it unchanged (their targets are then fractions of the travel).
+``[0, jaw_travel_mm]``: the exact analogue of the pneu-net's pressure change, so
+:class:`agents.policies.scripted.LinearRamp`
+and :class:`agents.policies.scripted.StepPolicy` drive it unchanged (their targets are then fractions of the travel).
 
 ## Observation Space
 
@@ -35,27 +36,30 @@ and :class:`agents.scripted.StepPolicy` drive it unchanged (their targets are th
 
 ## Default Task
 
-The objects, the rules, the reward and the episode of ``PneuNetGrasp-v0`` (its defaults, ``EnvConfig()``: see its
-docstring's Default Task and Catalogue), with the jaw's own (a test checks these against ``RigidGrasp-v0``):
+The objects, the rules, the reward and the episode of ``PneuNetGrasp-v1`` (its defaults, ``EnvConfig()``: see its
+docstring's Default Task and Catalogue), with the jaw's own (a test checks these against ``RigidGrasp-v1``):
 
 | Default               | Value           | Meaning                                                            |
 |-----------------------|-----------------|--------------------------------------------------------------------|
 | ``jaw_travel_mm``     | 17.6            | twice the deepest compliant layer drawn (``H`` up to 8.8 mm)       |
 | ``jaw_step_mm``       | 0.88            | ``jaw_travel_mm / 20``: full travel in 20 steps                    |
 | nominal radius (mm)   | 27.5            | the middle of the classes' radii (``1e3 / nominal_curvature_per_m``) |
-| ``damage_rule``       | ``hoop_strain`` | as ``PneuNetGrasp-v0``'s                                           |
+| ``damage_rule``       | ``hoop_strain`` | as ``PneuNetGrasp-v1``'s                                           |
 | episode steps         | 100             | ``squeeze_steps + hold_steps``                                     |
 
 ## Rewards, Starting State, Episode End
 
-Those of ``PneuNetGrasp-v0`` (:mod:`pneunet_env.task`): squeeze phase, then hold phase; damage by the config's
+Those of ``PneuNetGrasp-v1`` (:mod:`pneunet_env.task`): squeeze phase, then hold phase; damage by the config's
 ``damage_rule`` (by default ``hoop_strain``: overstressed when the traction exceeds the class's failure stress,
-crushed when the hoop strain ``delta kappa_obj`` exceeds its failure strain); slip in the hold phase when the
-traction is below ``rho g H / (grip_faces mu_f)``; ``info["is_success"]`` at the end. ``reset(seed=s)`` draws the
-same object as ``PneuNetGrasp-v0``'s ``reset(seed=s)`` (the same config); ``reset(options=...)`` pins as there.
+crushed when the hoop strain ``delta kappa_obj`` exceeds its failure strain); slip in the hold phase when friction
+on the jaws cannot carry the object's weight (the same hold rule, the jaws as long and as wide as the pneu-net's
+fingers, so that only the hand's compliance differs); ``info["is_success"]`` at the end. ``reset(seed=s)`` draws the
+same object as ``PneuNetGrasp-v1``'s ``reset(seed=s)`` (the same config); ``reset(options=...)`` pins as there.
 
 ## Version History
 
+* v1 (0.14): the hold rule of ``PneuNetGrasp-v1`` (the object's weight in 3D, not a slab of depth ``H``); the v0
+  id keeps the slab rule.
 * v0 (0.5): the default objects changed with ``PneuNetGrasp-v0``'s (a stiffer apple for the same seed), and again
   in 0.6 (the apple's flesh modulus only).
 * v0 (0.3): the default objects became the catalogue's ``kitchen`` under the hoop-strain rule; the nominal object
@@ -64,8 +68,8 @@ same object as ``PneuNetGrasp-v0``'s ``reset(seed=s)`` (the same config); ``rese
 
 ## Arguments
 
-``gym.make("RigidGrasp-v0", config=None, jaw_travel_mm=None, jaw_step_mm=None, **overrides)``: ``config`` and
-``overrides`` as for ``PneuNetGrasp-v0`` (an :class:`pneunet_env.config.EnvConfig`, a mapping or a YAML path);
+``gym.make("RigidGrasp-v1", config=None, jaw_travel_mm=None, jaw_step_mm=None, **overrides)``: ``config`` and
+``overrides`` as for ``PneuNetGrasp-v1`` (an :class:`pneunet_env.config.EnvConfig`, a mapping or a YAML path);
 ``jaw_travel_mm`` defaults to twice the deepest compliant layer of the classes drawn (``2 H_max``; from ranges,
 the deepest allowed indentation ``2 crush_fraction H_max``), kept below 90 % of the nominal object's radius;
 ``jaw_step_mm`` defaults to the same fraction of the travel that ``max_pressure_step_kpa`` is of
@@ -73,7 +77,7 @@ the deepest allowed indentation ``2 crush_fraction H_max``), kept below 90 % of 
 
 ## Info
 
-The keys of ``PneuNetGrasp-v0``'s info (:func:`pneunet_env.task.build_info`, at the same ``info_level``), with the
+The keys of ``PneuNetGrasp-v1``'s info (:func:`pneunet_env.task.build_info`, at the same ``info_level``), with the
 pressure 0 and the solver's entries those of an exact kinematic answer (converged, no iterations), plus
 ``jaw_closure_mm``, ``jaw_travel_mm`` and ``gripper = "rigid"``. The curvature is the jaw arc's ``w / R_jaw``.
 """
@@ -141,14 +145,14 @@ def kinematic_contact(kappa, side_strain, p0, closure_mm, obj, params, nominal_c
 
 
 class RigidGraspEnv(SingleGraspEnv):
-    """A rigid, position-controlled gripper grasps the objects of ``PneuNetGrasp-v0`` (see the module docstring).
+    """A rigid, position-controlled gripper grasps the objects of ``PneuNetGrasp-v1`` (see the module docstring).
 
     The command the task steps (:attr:`pneunet_env.task.EnvState.command`) is the jaw closure in mm: the task's
     command ceiling and step (``TaskParams.pressure_max`` and ``pressure_step``, a pressure's for the pneu-net) hold
     :attr:`jaw_travel_mm` and :attr:`jaw_step_mm` here (:func:`jaw_task_params`).
     """
 
-    env_id = "RigidGrasp-v0"
+    env_id = "RigidGrasp-v1"
     metadata = {"render_modes": []}
 
     def __init__(
@@ -205,6 +209,6 @@ def jaw_task_params(params: task.EnvParams, jaw_travel_mm: float, jaw_step_mm: f
     ``pressure_max`` and ``pressure_step`` of :class:`~pneunet_env.task.TaskParams`, named for the pneu-net's
     pressure) become the jaw's travel and step in mm, so the action moves the closure as it moves the pneu-net's
     pressure: clip the action to ``[-1, 1]``, step by ``jaw_step_mm``, clip to ``[0, jaw_travel_mm]``. No volume is
-    observed (``volume_scale=None``). Everything else is ``PneuNetGrasp-v0``'s."""
+    observed (``volume_scale=None``). Everything else is ``PneuNetGrasp-v1``'s."""
     jaw_task = params.task._replace(pressure_max=jaw_travel_mm, pressure_step=jaw_step_mm)
     return params._replace(task=jaw_task, volume_scale=None, free_table=None)

@@ -11,7 +11,7 @@ convention already)::
     from stable_baselines3.common.vec_env import VecMonitor
     from pneunet_env.envs.sb3 import SB3VecEnv
 
-    venv = VecMonitor(SB3VecEnv(num_envs=64))          # gym.make_vec("PneuNetGrasp-v0", num_envs=64) inside
+    venv = VecMonitor(SB3VecEnv(num_envs=64))          # gym.make_vec("PneuNetGrasp-v1", num_envs=64) inside
     PPO("MlpPolicy", venv).learn(200_000)
 
 This module imports stable_baselines3 (the ``rl`` extra); ``import pneunet_env`` does not.
@@ -62,7 +62,7 @@ class SB3VecEnv(VecEnv):
         env: VectorEnv | None = None,
         num_envs: int | None = None,
         info_keys: Sequence[str] | str = (),
-        env_id: str = "PneuNetGrasp-v0",
+        env_id: str = "PneuNetGrasp-v1",
         **make_kwargs: Any,
     ) -> None:
         if env is None:

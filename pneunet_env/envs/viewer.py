@@ -14,7 +14,7 @@ class HumanViewer:
     nothing is shown; with an interactive one, the window is updated and the GUI given ``1/fps`` seconds.
     """
 
-    def __init__(self, title: str = "PneuNetGrasp-v0", fps: float = 20.0) -> None:
+    def __init__(self, title: str = "PneuNetGrasp-v1", fps: float = 20.0) -> None:
         try:
             import matplotlib
             import matplotlib.pyplot as plt

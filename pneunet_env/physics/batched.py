@@ -29,22 +29,19 @@ import threading
 
 import numpy as np
 
-from pneunet_env.physics import _jit, contact, masked, mechanics, xp
+from pneunet_env.physics import _jit, contact, continuation, masked, mechanics, xp
 from pneunet_env.physics import solver as _solver
 from pneunet_env.physics._jit import HAVE_NUMBA, njit_cached
-from pneunet_env.physics.params import ActuatorParams
-from pneunet_env.physics.solver import (
-    DEFAULT_OPTIONS,
+from pneunet_env.physics.continuation import (
     STATUS_CONVERGED,
     STATUS_INACTIVE,
     STATUS_OUTSIDE,
     STATUS_ROUNDOFF,
-    Equilibrium,
     Solve,
-    SolverOptions,
     _follow_ev,
-    params_tuple,
 )
+from pneunet_env.physics.params import ActuatorParams
+from pneunet_env.physics.solver import DEFAULT_OPTIONS, Equilibrium, SolverOptions, params_tuple
 from pneunet_env.physics.xp import NUMPY, Ops, copy, is_torch, to_host, torch_ops
 
 __all__ = ["BACKENDS", "PARALLEL_MIN_ENVS", "ENVS_PER_THREAD", "threads_for", "check_threads", "compile_loops",
@@ -392,7 +389,7 @@ if HAVE_NUMBA:
         numba.config.THREADING_LAYER = "forksafe"
         TBB_LOADED = preload_tbb()  # a venv's lib/ is not on the loader's path: without this, no TBB there
 
-    _loop_serial, _loop_parallel = compile_loops(_make_loop, (mechanics, contact, _solver, _jit, xp,
+    _loop_serial, _loop_parallel = compile_loops(_make_loop, (mechanics, contact, continuation, _solver, _jit, xp,
                                                               sys.modules[__name__]))
 
 

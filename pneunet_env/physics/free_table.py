@@ -42,16 +42,16 @@ from typing import NamedTuple
 
 import numpy as np
 
-from pneunet_env.physics import _jit
+from pneunet_env.physics import _jit, continuation
 from pneunet_env.physics import solver as _solver
 from pneunet_env.physics._jit import python_entry
-from pneunet_env.physics.mechanics import Evaluation
-from pneunet_env.physics.solver import (
+from pneunet_env.physics.continuation import (
     STATUS_INACTIVE,
     STATUS_ROUNDOFF,
     ActuatorNumbers,
     Continuation,
 )
+from pneunet_env.physics.mechanics import Evaluation
 
 __all__ = ["FreeTable", "SPACING", "EMPTY", "BRANCH_AGREEMENT", "build_free_table", "free_table", "make_follow_table",
            "interpolate", "follow_table"]
@@ -286,7 +286,7 @@ def _make_entries(stamp: int):
     return {"interpolate": plain_interpolate, "follow_table": plain_follow_table}
 
 
-_ENTRY_SOURCES = (_solver.mechanics, _solver.contact, _solver.xp, _jit, _solver, sys.modules[__name__])
+_ENTRY_SOURCES = (_solver.mechanics, _solver.contact, _solver.xp, _jit, continuation, _solver, sys.modules[__name__])
 _tabulate = _jit.njit_cached(_make_tabulate, _ENTRY_SOURCES)
 
 interpolate = _jit.njit_cached(lambda stamp: _make_entries(stamp)["interpolate"], _ENTRY_SOURCES)

@@ -31,7 +31,7 @@ from typing import Any, NamedTuple
 
 from pneunet_env.physics import mechanics
 from pneunet_env.physics.contact import make_contact
-from pneunet_env.physics.solver import (
+from pneunet_env.physics.continuation import (
     ACCEPT_GTOL,
     ARMIJO,
     BRANCH_MIDPOINT_FRACTION,

@@ -89,9 +89,19 @@ _PHYSICAL_NAMES = {
 """The physical key of each :class:`ActuatorParams` field (for error messages)."""
 
 
+FINGER_LENGTH_MM = 90.0
+"""The finger's default length (mm); see ``docs/env.md``, "The hold rule", for its source."""
+
+
 @dataclass(frozen=True)
 class PhysicalActuator:
-    """The actuator in physical units (supplement Table 1 defaults): lengths in mm, moduli in kPa."""
+    """The actuator in physical units (supplement Table 1 defaults): lengths in mm, moduli in kPa.
+
+    The mechanics is the unit cell's (2D, per unit depth: ``depth_mm`` only turns volumes into mm^3). The grip
+    needs the finger in 3D: ``length_mm`` is the finger's length along its base (the cells in series, all at the
+    cell's curvature), and :attr:`finger_width_mm` its out-of-plane width, the cavity's depth ``t`` and a side wall
+    ``h_s`` on either side of it.
+    """
 
     width_mm: float = 5.0
     chamber_height_mm: float = 5.0
@@ -103,10 +113,11 @@ class PhysicalActuator:
     base_modulus_kpa: float = 3000.0
     poisson_ratio: float = 0.5
     gent_limit: float = 20.0
+    length_mm: float = FINGER_LENGTH_MM
 
     def __post_init__(self) -> None:
         for name in ("width_mm", "chamber_height_mm", "depth_mm", "base_thickness_mm", "side_thickness_mm",
-                     "top_thickness_mm", "shear_modulus_kpa", "base_modulus_kpa", "gent_limit"):
+                     "top_thickness_mm", "shear_modulus_kpa", "base_modulus_kpa", "gent_limit", "length_mm"):
             check_positive(name, getattr(self, name))
         check_finite("poisson_ratio", self.poisson_ratio)
         try:  # the geometry must leave a cavity: ActuatorParams says why, named here by the physical keys
@@ -120,6 +131,12 @@ class PhysicalActuator:
     @property
     def scales(self) -> Scales:
         return Scales(self.width_mm, self.shear_modulus_kpa)
+
+    @property
+    def finger_width_mm(self) -> float:
+        """The finger's out-of-plane width (mm): the cavity's depth ``t`` and a side wall on either side,
+        ``t + 2 h_s`` (10 mm for Table 1); the width the grip's traction acts over."""
+        return self.depth_mm + 2.0 * self.side_thickness_mm
 
     def to_dimensionless(self) -> ActuatorParams:
         """The :class:`ActuatorParams` of this actuator (validated there: a wall thicker than the chamber raises)."""

@@ -10,12 +10,13 @@ import numpy as np
 import pytest
 from gymnasium.utils.env_checker import check_env
 
-import pneunet_env  # noqa: F401  (registers PneuNetGrasp-v0)
-from agents.evaluate import run_episode
-from agents.oracle import Oracle, feasible_stiffness, plan_target
-from agents.policies import BEST_RAMP_PAPER_PATH, BEST_RIGID_PAPER_PATH, make_policy, parse_spec
-from agents.scripted import LinearRamp, StepPolicy, load_ramp, save_ramp
-from agents.search import Candidate, best_candidate, search_ramp, strain_crush_fraction
+import pneunet_env  # noqa: F401  (registers PneuNetGrasp-v1)
+from agents.evaluation.episodes import run_episode
+from agents.policies.oracle import Oracle, feasible_stiffness, plan_target
+from agents.policies.registry import BEST_RAMP_PAPER_PATH, BEST_RIGID_PAPER_PATH, make_policy, parse_spec
+from agents.policies.scripted import LinearRamp, StepPolicy, load_ramp, save_ramp
+from agents.search.ramp import Candidate, best_candidate, search_ramp
+from agents.search.sensitivity import strain_crush_fraction
 from pneunet_env import PAPER_TASK, load_config
 from pneunet_env.envs.rigid import RigidGraspEnv, default_jaw_travel_mm, jaw_indentation
 from pneunet_env.objects import GraspObject
@@ -92,7 +93,7 @@ def test_best_ramp_loads_its_saved_parameters():
     assert data["score"]["success_rate"] >= 0.0 and data["search"]["objects"] >= 1
     rigid_data = json.loads(BEST_RIGID_PAPER_PATH.read_text())
     r = make_policy("rigid", CFG)
-    assert r.env_id == "RigidGrasp-v0" and r.command == "jaw"
+    assert r.env_id == "RigidGrasp-v1" and r.command == "jaw"
     assert r.policy.target * default_jaw_travel_mm(CFG) == pytest.approx(rigid_data["target_mm"])
 
 
@@ -145,6 +146,9 @@ def test_feasible_stiffness_is_the_grip_over_the_crush_depth():
     # a density range: the lightest objects set the bound
     assert feasible_stiffness(CFG.replace(object_density_kg_m3=[30.0, 1000.0])) == pytest.approx(
         feasible_stiffness(foam), rel=1e-12)
+    # the weight rule on the ring: rho g pi (2 R H - H^2) b / (2 mu_f L_c b), L_c = 90 mm, over crush depth H/w = 2
+    ring = 1000 * 9.81 * math.pi * (2 * 0.25 * 0.010 - 0.010 ** 2) / (2 * 0.5 * 0.090) / 50e3 / 2.0
+    assert feasible_stiffness(CFG.replace(hold_rule="weight")) == pytest.approx(ring, rel=1e-12)  # 0.0168
 
 
 @pytest.mark.parametrize("k, feasible", [(1e-5, False), (3e-4, False), (2e-3, True), (5e-2, True)])
@@ -184,7 +188,7 @@ def test_rigid_env_passes_the_gymnasium_checker():
 
 
 def test_rigid_traction_is_k_delta_and_the_same_objects():
-    env = gym.make("RigidGrasp-v0", **PAPER_TASK)
+    env = gym.make("RigidGrasp-v1", **PAPER_TASK)
     penv = gym.make("PneuNetGrasp-Paper-v0")
     for seed in range(5):
         _, info = env.reset(seed=seed)
@@ -204,7 +208,7 @@ def test_rigid_traction_is_k_delta_and_the_same_objects():
 
 
 def test_rigid_crushes_past_the_thickness_and_slips_below_the_grip():
-    env = gym.make("RigidGrasp-v0", **PAPER_TASK)
+    env = gym.make("RigidGrasp-v1", **PAPER_TASK)
     too_deep = LinearRamp.from_kpa(CFG.task.max_pressure_kpa, 20)  # the full 20 mm travel: past H = 10 mm
     r = run_episode(env, too_deep, seed=0, options={"object_stiffness": 1e-2})
     assert r["damaged"] and not r["success"]
@@ -287,10 +291,10 @@ def test_a_ramp_holds_the_pressure_exactly_once_at_its_target():
     action, so the command stays put (it used to creep by ~5e-8 of full scale a step, re-solving every step)."""
     import gymnasium as gym
 
-    from agents.scripted import LinearRamp
+    from agents.policies.scripted import LinearRamp
 
     ramp = LinearRamp(0.565, 20)
-    env = gym.make_vec("PneuNetGrasp-v0", num_envs=4, info_level="full", backend="numpy")
+    env = gym.make_vec("PneuNetGrasp-v1", num_envs=4, info_level="full", backend="numpy")
     obs, _ = env.reset(seed=3)
     pressures, ended = [], np.zeros(4, bool)
     for _ in range(30):

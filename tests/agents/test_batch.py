@@ -1,4 +1,4 @@
-"""The batched evaluation (agents.batch) against the single env, episode by episode."""
+"""The batched evaluation (agents.evaluation.batch) against the single env, episode by episode."""
 
 from __future__ import annotations
 
@@ -6,11 +6,11 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-import pneunet_env  # noqa: F401  (registers PneuNetGrasp-v0)
-from agents.batch import duration_invariance, episode_seeds, ramp_actions, ramp_grid
-from agents.evaluate import run_episode
-from agents.scripted import LinearRamp
-from agents.search import search_ramp
+import pneunet_env  # noqa: F401  (registers PneuNetGrasp-v1)
+from agents.evaluation.batch import duration_invariance, episode_seeds, ramp_actions, ramp_grid
+from agents.evaluation.episodes import run_episode
+from agents.policies.scripted import LinearRamp
+from agents.search.ramp import search_ramp
 from pneunet_env import load_config
 
 CFG = load_config()
@@ -20,7 +20,7 @@ def test_ramp_grid_is_the_single_env_object_for_object():
     seeds = episode_seeds(6)
     targets = [0.3, 0.565]
     g = ramp_grid(CFG, seeds, targets, 20)
-    env = gym.make("PneuNetGrasp-v0", config=CFG)
+    env = gym.make("PneuNetGrasp-v1", config=CFG)
     for i, t in enumerate(targets):
         for m, s in enumerate(seeds):
             r = run_episode(env, LinearRamp(t, 20, CFG), int(s))
@@ -83,8 +83,8 @@ def test_episode_seeds_refuses_bad_values(n, seed):
 @pytest.mark.parametrize("spec", ["best-ramp", "oracle", "step:target_kpa=20",
                                   pytest.param("agents/models/ppo_kitchen.zip", marks=pytest.mark.slow)])
 def test_batched_policies_are_the_episode_loop(spec):
-    from agents.batch import batchable, run_policy
-    from agents.policies import make_policy
+    from agents.evaluation.batch import batchable, run_policy
+    from agents.policies.registry import make_policy
 
     if spec.endswith(".zip"):
         pytest.importorskip("stable_baselines3")
@@ -102,8 +102,9 @@ def test_batched_policies_are_the_episode_loop(spec):
 
 
 def test_evaluate_on_a_stiffness_grid_runs_batched_with_the_same_episodes():
-    from agents.evaluate import episode_seed, evaluate_policies
-    from agents.policies import make_policy
+    from agents.evaluation.episodes import episode_seed
+    from agents.evaluation.evaluate import evaluate_policies
+    from agents.policies.registry import make_policy
     from pneunet_env import PAPER_TASK
 
     cfg = load_config(**PAPER_TASK)

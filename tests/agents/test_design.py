@@ -10,7 +10,6 @@ import pytest
 
 optuna = pytest.importorskip("optuna")
 
-from agents.batch import episode_seeds  # noqa: E402
 from agents.design import (  # noqa: E402
     DESIGN_SPACE,
     P_TILDE_MAX,
@@ -24,6 +23,7 @@ from agents.design import (  # noqa: E402
     table1_design,
 )
 from agents.design.study import _pareto  # noqa: E402
+from agents.evaluation.batch import episode_seeds  # noqa: E402
 from pneunet_env import load_config  # noqa: E402
 
 SMALL = ["--objects", "8", "--held-out", "8", "--top", "1", "--quiet",
@@ -110,10 +110,10 @@ def test_journal_storage_and_export(tmp_path):
 @pytest.fixture
 def four_cores(monkeypatch):
     """--jobs 2 and 3 taken on a machine of fewer cores (the bound is checked in the command, not the workers)."""
-    import agents.workers
+    import agents.common.workers
 
-    monkeypatch.setattr(agents.workers, "usable_cores", lambda: 4, raising=False)
-    monkeypatch.setattr(agents.workers, "available_memory", lambda: None, raising=False)
+    monkeypatch.setattr(agents.common.workers, "usable_cores", lambda: 4, raising=False)
+    monkeypatch.setattr(agents.common.workers, "available_memory", lambda: None, raising=False)
 
 
 @pytest.mark.slow
@@ -162,7 +162,7 @@ def test_parse_bounds():
 
 @pytest.mark.slow
 def test_bench_design_prints_figures(tmp_path, capsys):
-    from agents.bench_design import main as bench
+    from agents.bench.design import main as bench
 
     assert bench(["--objects", "4", "--repeats", "1", "--no-old", "--json", str(tmp_path / "b.json")]) == 0
     out = capsys.readouterr().out
@@ -219,10 +219,10 @@ def test_each_worker_and_each_resumption_samples_its_own_designs(tmp_path):
 def test_jobs_beyond_the_machine_are_refused_by_name(tmp_path, monkeypatch, cores, memory, jobs, match):
     import os
 
-    import agents.workers
+    import agents.common.workers
 
     monkeypatch.setattr(os, "sched_getaffinity", lambda pid: set(range(cores)), raising=False)
-    monkeypatch.setattr(agents.workers, "available_memory", lambda: memory, raising=False)
+    monkeypatch.setattr(agents.common.workers, "available_memory", lambda: memory, raising=False)
     with pytest.raises(SystemExit, match=match):
         main(["--jobs", str(jobs), "--report", "--out", str(tmp_path / "o"), "--quiet"])
     assert not (tmp_path / "o").exists() or not any((tmp_path / "o").iterdir())

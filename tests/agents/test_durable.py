@@ -183,7 +183,7 @@ class _CutModel:
 
 def test_a_checkpoint_or_model_cut_by_an_interrupt_leaves_no_partial_file(tmp_path):
     pytest.importorskip("stable_baselines3")
-    from agents.train import _save_checkpoint, _save_model
+    from agents.training.train import _save_checkpoint, _save_model
 
     folder = tmp_path / "checkpoints"
     folder.mkdir()
@@ -198,7 +198,7 @@ def test_a_checkpoint_or_model_cut_by_an_interrupt_leaves_no_partial_file(tmp_pa
 
 
 def test_resume_takes_the_newest_readable_checkpoint_and_says_which_it_skipped(tmp_path, capsys):
-    from agents.train import latest_checkpoint
+    from agents.training.train import latest_checkpoint
 
     folder = tmp_path / "checkpoints"
     folder.mkdir()
@@ -216,7 +216,7 @@ def test_resume_takes_the_newest_readable_checkpoint_and_says_which_it_skipped(t
 
 def test_a_cut_run_record_is_named_on_resume(tmp_path):
     pytest.importorskip("stable_baselines3")
-    from agents.train import _read_record
+    from agents.training.train import _read_record
 
     run_dir = tmp_path / "run"
     (run_dir / "checkpoints").mkdir(parents=True)
@@ -248,7 +248,7 @@ def _interrupt_at(monkeypatch, steps: int):
     """Make training raise KeyboardInterrupt (as a SIGINT does) once the model has ``steps`` timesteps."""
     from stable_baselines3.common.callbacks import BaseCallback
 
-    import agents.train as train_mod
+    import agents.training.train as train_mod
 
     class CtrlC(BaseCallback):
         def _on_step(self) -> bool:
@@ -264,8 +264,8 @@ def _interrupt_at(monkeypatch, steps: int):
 @pytest.mark.filterwarnings("ignore::UserWarning")
 def test_ctrl_c_during_train_leaves_a_run_that_resumes(tmp_path, monkeypatch, capsys):
     pytest.importorskip("stable_baselines3")
-    from agents.policies import check_model_zip
-    from agents.train import latest_checkpoint
+    from agents.policies.sb3 import check_model_zip
+    from agents.training.train import latest_checkpoint
 
     run_dir = tmp_path / "run"
     argv = ["train", "--config", "ppo", "--run-dir", str(run_dir), "--vec-env", "dummy", *TINY]
@@ -295,7 +295,8 @@ def test_ctrl_c_during_train_leaves_a_run_that_resumes(tmp_path, monkeypatch, ca
 
 def test_ctrl_c_before_the_model_exists_leaves_no_run_folder(tmp_path, monkeypatch):
     pytest.importorskip("stable_baselines3")
-    import agents.train as train_mod
+    import agents.training.cli as train_cli
+    import agents.training.train as train_mod
 
     real = train_mod.make_vec_env
     calls = []
@@ -310,23 +311,23 @@ def test_ctrl_c_before_the_model_exists_leaves_no_run_folder(tmp_path, monkeypat
 
     monkeypatch.setattr(train_mod, "make_vec_env", make_then_interrupt)
     with pytest.raises(KeyboardInterrupt):
-        train_mod.run(_train_args(tmp_path / "run"))
+        train_cli.run(_train_args(tmp_path / "run"))
     assert len(calls) == 2 and not (tmp_path / "run").exists()
 
 
 def _train_args(run_dir: Path):
     import argparse
 
-    import agents.train as train_mod
+    import agents.training.cli as train_cli
 
     parser = argparse.ArgumentParser()
-    train_mod.add_arguments(parser)
+    train_cli.add_arguments(parser)
     return parser.parse_args(["--config", "ppo", "--run-dir", str(run_dir), "--vec-env", "dummy", *TINY])
 
 
 def test_an_interrupted_seed_is_not_done(tmp_path):
     # a seed interrupted after its last step (while saving its final model, say) is resumed, not counted as done
-    from agents.seeds import _done
+    from agents.training.seeds import _done
 
     hp = {"n_timesteps": 100}
     for state, done in (("interrupted", False), ("running", False), ("failed", False), ("finished", True),
@@ -342,7 +343,7 @@ def test_checkpoints_are_whole_zips_with_their_statistics_first(tmp_path, monkey
     import gymnasium as gym
     from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
-    import agents.train as train_mod
+    import agents.training.train as train_mod
 
     venv = VecNormalize(DummyVecEnv([lambda: gym.make("Pendulum-v1")]))
     model = sb3.PPO("MlpPolicy", venv, n_steps=16, batch_size=16, device="cpu")
@@ -390,7 +391,7 @@ def test_deferred_interrupt_holds_ctrl_c_until_the_block_is_done(tmp_path, pytho
 
 
 def test_python_m_agents_search_ends_a_ctrl_c_with_one_line_and_130(monkeypatch, capsys):
-    import agents.search as search
+    import agents.search.cli as search
 
     def interrupted(args):
         raise KeyboardInterrupt

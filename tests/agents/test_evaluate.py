@@ -7,17 +7,11 @@ import json
 import numpy as np
 import pytest
 
-from agents.batch import draw_objects
-from agents.evaluate import (
-    DEFAULT_MODEL,
-    catalogue_stiffness_range,
-    decade_table,
-    draw_bins,
-    parse_overrides,
-    regime_summary,
-    stiffness_bins,
-    stiffness_grid,
-)
+from agents.common.cli import parse_overrides
+from agents.evaluation.batch import draw_objects
+from agents.evaluation.objects import catalogue_stiffness_range, draw_bins, stiffness_bins, stiffness_grid
+from agents.evaluation.summaries import decade_table, regime_summary
+from agents.policies.registry import DEFAULT_MODEL
 from pneunet_env import PAPER_TASK, EnvConfig, load_config
 from pneunet_env.cli import main
 from pneunet_env.objects import stiffness_per_modulus

@@ -11,8 +11,14 @@ from pathlib import Path
 
 import pytest
 
-from agents.policies import BEST_RAMP_PAPER_PATH, BEST_RAMP_PATH, BEST_RIGID_PAPER_PATH, BEST_RIGID_PATH, make_policy
-from agents.scripted import LinearRamp, StepPolicy, load_ramp, save_ramp
+from agents.policies.registry import (
+    BEST_RAMP_PAPER_PATH,
+    BEST_RAMP_PATH,
+    BEST_RIGID_PAPER_PATH,
+    BEST_RIGID_PATH,
+    make_policy,
+)
+from agents.policies.scripted import LinearRamp, StepPolicy, load_ramp, save_ramp
 from pneunet_env import PAPER_TASK
 from pneunet_env.cli import main
 from pneunet_env.config import load_config
@@ -53,7 +59,9 @@ def test_shipped_schedules_give_the_same_kpa_and_mm_as_before(config_path, task)
     assert _kpa(ramp, cfg) == pytest.approx(data["target_kpa"], rel=1e-12)
     rigid = make_policy("rigid", cfg, config_path=config_path)
     rdata = json.loads((BEST_RIGID_PAPER_PATH if task == "paper" else BEST_RIGID_PATH).read_text())
-    assert rigid.policy.target == rdata["target_mm"] / default_jaw_travel_mm(cfg)
+    if default_jaw_travel_mm(cfg) == rdata["jaw_travel_mm"]:
+        assert rigid.policy.target == rdata["target"]  # the file's own fraction, bit for bit, where the scales agree
+    assert rigid.policy.target * default_jaw_travel_mm(cfg) == pytest.approx(rdata["target_mm"], rel=1e-12)
 
 
 def test_shipped_schedules_in_kpa():
@@ -64,8 +72,8 @@ def test_shipped_schedules_in_kpa():
         got[path.stem if path else "default"] = round(_kpa(make_policy("best-ramp", cfg, config_path=path), cfg), 6)
     paper = load_config(None, **PAPER_TASK)
     got["paper"] = round(_kpa(make_policy("best-ramp", paper), paper), 6)
-    assert got == {"default": 33.9, "paper": 42.0, "designed-catalogue_uniform": 3.192, "designed-kitchen": 2.584,
-                   "designed-lab_bench": 2.888}
+    assert got == {"default": 35.1, "paper": 42.0, "designed-catalogue_uniform": 5.5176, "designed-kitchen": 7.2504,
+                   "designed-lab_bench": 6.0648}
 
 
 # ------------------------------------------------------------------------------------ (c) a schedule is defined in kPa
@@ -74,15 +82,15 @@ def test_a_new_maximum_never_moves_a_tuned_schedule():
     the rigid jaw kept its millimetres."""
     cfg = load_config(None, max_pressure_kpa=40.0)
     ramp = make_policy("best-ramp", cfg)
-    assert _kpa(ramp, cfg) == pytest.approx(33.9, rel=1e-12) and "33.9 kPa over 20 steps" in ramp.label
-    assert make_policy("rigid", cfg).policy.target * default_jaw_travel_mm(cfg) == pytest.approx(2.992)
+    assert _kpa(ramp, cfg) == pytest.approx(35.1, rel=1e-12) and "35.1 kPa over 20 steps" in ramp.label
+    assert make_policy("rigid", cfg).policy.target * default_jaw_travel_mm(cfg) == pytest.approx(7.832)
     designed = ENV_CONFIGS / "designed-kitchen.yaml"
     cfg = load_config(designed, max_pressure_kpa=12.0)
-    assert _kpa(make_policy("best-ramp", cfg, config_path=designed), cfg) == pytest.approx(2.584, rel=1e-9)
+    assert _kpa(make_policy("best-ramp", cfg, config_path=designed), cfg) == pytest.approx(7.2504, rel=1e-9)
 
 
 def test_a_schedule_above_the_new_maximum_is_refused_not_clipped():
-    with pytest.raises(ValueError, match=r"best_ramp\.json'.*33\.9 kPa, is above max_pressure_kpa = 30 kPa"):
+    with pytest.raises(ValueError, match=r"best_ramp\.json'.*35\.1 kPa, is above max_pressure_kpa = 30 kPa"):
         make_policy("best-ramp", load_config(None, max_pressure_kpa=30.0))
 
 
@@ -97,7 +105,7 @@ def test_a_jaw_schedule_beyond_the_travel_is_refused_not_clipped(tmp_path):
 def test_the_demo_runs_the_tuned_kpa_under_another_maximum(capsys):
     rc = main(["demo", "--set", "max_pressure_kpa=40", "--policy", "best-ramp", "--objects", "1"])
     assert rc == 0
-    assert "best-ramp (33.9 kPa over 20 steps)" in capsys.readouterr().out
+    assert "best-ramp (35.1 kPa over 20 steps)" in capsys.readouterr().out
 
 
 def test_a_fraction_only_ramp_is_a_fraction_of_the_running_maximum(tmp_path):
@@ -121,7 +129,7 @@ def test_a_ramp_given_in_kpa_alone_is_read_in_kpa(tmp_path):
 def test_search_writes_the_maximum_its_fraction_is_of(tmp_path):
     import numpy as np
 
-    from agents.search import Candidate, save_best
+    from agents.search.ramp import Candidate, save_best
 
     cfg = load_config(None, max_pressure_kpa=50.0)
     best = Candidate(0.5, 10, 1.0, 0.0, 0.0, 1.0, np.ones(2, bool), np.ones(2), np.ones(2))
@@ -135,11 +143,11 @@ def test_search_writes_the_maximum_its_fraction_is_of(tmp_path):
 def test_a_ramp_file_whose_two_targets_disagree_is_refused_naming_both(tmp_path):
     """Before: editing ``target_kpa`` was ignored, because ``target`` (a fraction) won."""
     data = json.loads(BEST_RAMP_PATH.read_text())
-    data["target_kpa"] = 30.0  # edited; target still says 0.565 of 60 kPa
+    data["target_kpa"] = 30.0  # edited; target still says 0.585 of 60 kPa
     path = tmp_path / "edited.json"
     path.write_text(json.dumps(data))
-    with pytest.raises(ValueError, match=r"edited\.json'.*disagree: target_kpa = 30 kPa, but target = 0\.565 of "
-                                         r"max_pressure_kpa = 60 is 33\.9 kPa"):
+    with pytest.raises(ValueError, match=r"edited\.json'.*disagree: target_kpa = 30 kPa, but target = 0\.585 of "
+                                         r"max_pressure_kpa = 60 is 35\.1 kPa"):
         make_policy(f"best-ramp:path={path}")
     data["target"] = 0.5  # both edited, and agreeing: 30 kPa
     path.write_text(json.dumps(data))
@@ -150,7 +158,7 @@ def test_a_jaw_file_whose_two_targets_disagree_is_refused(tmp_path):
     data = {**json.loads(BEST_RIGID_PATH.read_text()), "target_mm": 5.0}
     path = tmp_path / "jaw.json"
     path.write_text(json.dumps(data))
-    with pytest.raises(ValueError, match=r"target_mm = 5 mm, but target = 0\.17 of jaw_travel_mm = 17\.6"):
+    with pytest.raises(ValueError, match=r"target_mm = 5 mm, but target = 0\.445 of jaw_travel_mm = 17\.6"):
         make_policy(f"rigid:path={path}")
 
 
@@ -173,16 +181,16 @@ def test_a_designed_config_without_its_ramp_is_refused_not_run_with_another_actu
         make_policy("best-ramp", load_config(copy), config_path=copy)
     msg = str(info.value)
     assert str(tmp_path / "designed-kitchen.best_ramp.json") in msg and "is missing" in msg
-    assert "another actuator" in msg and "agents/best_ramp.json (33.9 kPa over 20 steps)" in msg
+    assert "another actuator" in msg and "agents/best_ramp.json (35.1 kPa over 20 steps)" in msg
     assert "pneunet-grasp search --config" in msg and "best-ramp:path=" in msg
     # with its ramp beside it again, it runs the design's
     shutil.copyfile(ENV_CONFIGS / "designed-kitchen.best_ramp.json", tmp_path / "designed-kitchen.best_ramp.json")
     cfg = load_config(copy)
-    assert _kpa(make_policy("best-ramp", cfg, config_path=copy), cfg) == pytest.approx(2.584)
+    assert _kpa(make_policy("best-ramp", cfg, config_path=copy), cfg) == pytest.approx(7.2504)
     # the jaw's schedule does not depend on the pneu-net: the package's, as before
     (tmp_path / "designed-kitchen.best_ramp.json").unlink()
-    assert "2.99 mm" in make_policy("rigid", cfg, config_path=copy).label
-    # the package's schedule named explicitly runs (and the kPa rule still applies: 33.9 kPa > 9.12 kPa)
+    assert "7.83 mm" in make_policy("rigid", cfg, config_path=copy).label
+    # the package's schedule named explicitly runs (and the kPa rule still applies: 35.1 kPa > 9.12 kPa)
     with pytest.raises(ValueError, match="above max_pressure_kpa = 9.12"):
         make_policy(f"best-ramp:path={BEST_RAMP_PATH}", cfg, config_path=copy)
 
@@ -201,7 +209,7 @@ def test_a_config_of_table1s_actuator_without_a_ramp_runs_the_packages(tmp_path)
     copy = tmp_path / "mine.yaml"
     shutil.copyfile(ENV_CONFIGS / "default.yaml", copy)
     cfg = load_config(copy)
-    assert _kpa(make_policy("best-ramp", cfg, config_path=copy), cfg) == pytest.approx(33.9)
+    assert _kpa(make_policy("best-ramp", cfg, config_path=copy), cfg) == pytest.approx(35.1)
 
 
 def _unreadable(tmp_path: Path, kind: str, name: str) -> Path:

@@ -46,7 +46,7 @@ def test_the_vector_seed_message_names_the_value_and_its_type():
 
     import pneunet_env  # noqa: F401  (registers the env)
 
-    env = gym.make_vec("PneuNetGrasp-v0", num_envs=4)
+    env = gym.make_vec("PneuNetGrasp-v1", num_envs=4)
     try:
         for bad, shown in [("abc", "'abc' (str)"), ("abcd", "'abcd' (str)"), (b"ab", "b'ab' (bytes)"),
                            (3.5, "3.5 (float)"), ([1, 2], "[1, 2] (list of 2)")]:
@@ -58,7 +58,7 @@ def test_the_vector_seed_message_names_the_value_and_its_type():
 
 
 # ---------------------------------------------------------------------------------------------------------------------
-# Worker processes (agents.workers): a death noticed, the others stopped cleanly, Ctrl-C
+# Worker processes (agents.common.workers): a death noticed, the others stopped cleanly, Ctrl-C
 # ---------------------------------------------------------------------------------------------------------------------
 # The jobs are Python expressions run by ``eval`` (a builtin: it pickles by name to the worker; the test module does
 # not, under pytest's importlib mode).
@@ -68,7 +68,7 @@ DIE = "__import__('os').kill(__import__('os').getpid(), 9)"
 
 
 def test_a_dead_worker_is_noticed_and_the_others_are_stopped_cleanly():
-    from agents.workers import run_jobs
+    from agents.common.workers import run_jobs
 
     ended = []
     t0 = time.monotonic()
@@ -90,7 +90,7 @@ SWALLOWED = ("((type('D', (), {'__del__': lambda self: (__import__('os').kill(__
 
 
 def test_an_interrupt_a_callback_swallowed_is_raised_again_quietly(capfd):
-    from agents.workers import run_jobs
+    from agents.common.workers import run_jobs
 
     t0 = time.monotonic()
     ran = run_jobs(eval, [SWALLOWED], 1)
@@ -102,7 +102,7 @@ def test_an_interrupt_a_callback_swallowed_is_raised_again_quietly(capfd):
 
 
 def test_ctrl_c_in_the_parent_stops_every_worker_and_is_reported(python_ctrl_c):
-    from agents.workers import run_jobs
+    from agents.common.workers import run_jobs
 
     threading.Timer(2.0, os.kill, (os.getpid(), signal.SIGINT)).start()
     t0 = time.monotonic()
@@ -138,8 +138,8 @@ def _model_zip(path: Path) -> None:
 
 
 def test_a_seed_whose_worker_died_is_marked_failed_its_lock_released_and_its_temporary_files_removed(tmp_path):
-    from agents.seeds import _done, _mark_died
-    from agents.workers import Outcome
+    from agents.common.workers import Outcome
+    from agents.training.seeds import _done, _mark_died
 
     run = tmp_path / "seed-3"
     _model_zip(run / "checkpoints" / "model_128_steps.zip")
@@ -253,7 +253,7 @@ def test_a_storage_that_is_not_one_is_refused_by_name_and_left_byte_for_byte(tmp
 
 def test_a_new_or_empty_journal_and_a_real_one_are_taken(tmp_path):
     pytest.importorskip("optuna")
-    from agents.design.study import check_storage
+    from agents.design.storage import check_storage
 
     empty = tmp_path / "empty.log"
     empty.write_bytes(b"")
@@ -268,7 +268,7 @@ def test_a_new_or_empty_journal_and_a_real_one_are_taken(tmp_path):
 
 def test_an_rdb_server_that_does_not_answer_is_refused_within_the_time_limit(tmp_path, monkeypatch):
     optuna = pytest.importorskip("optuna")
-    from agents.design import study
+    from agents.design import storage
 
     calls = []
 
@@ -277,10 +277,10 @@ def test_an_rdb_server_that_does_not_answer_is_refused_within_the_time_limit(tmp
         time.sleep(30)
 
     monkeypatch.setattr(optuna.storages, "RDBStorage", hangs)
-    monkeypatch.setattr(study, "STORAGE_TIMEOUT_S", 0.5)
+    monkeypatch.setattr(storage, "STORAGE_TIMEOUT_S", 0.5)
     t0 = time.monotonic()
     with pytest.raises(ValueError, match=r"postgresql://u@10\.255\.255\.1/db.*no answer within 0\.5 s"):
-        study.make_storage("postgresql://u@10.255.255.1/db", tmp_path)
+        storage.make_storage("postgresql://u@10.255.255.1/db", tmp_path)
     assert time.monotonic() - t0 < 5
     assert calls[0]["engine_kwargs"]["connect_args"] == {"connect_timeout": 0}  # the driver gives up too
     assert not list(tmp_path.iterdir())  # no partial study

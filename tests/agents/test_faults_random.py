@@ -265,7 +265,7 @@ def test_a_seed_worker_killed_at_a_random_moment(tmp_path):
         for other in run_dir.glob("seed-*/run.json"):
             assert json.loads(other.read_text())["state"] in ("failed", "interrupted", "finished"), other
 
-    h = Harness(tmp_path, ["agents.seeds", "agents.train", "stable_baselines3"])
+    h = Harness(tmp_path, ["agents.training.seeds", "agents.training.train", "stable_baselines3"])
     try:
         hits = _random_kills(h, lambda d: [*SEEDS, "--run-dir", str(d)], tmp_path, 34, "train", check)
         print(f"train --seeds 2 --jobs 2: {hits} of {REPEATS} random kills hit a training worker")

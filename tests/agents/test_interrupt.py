@@ -40,7 +40,8 @@ HARNESS = textwrap.dedent('''
     proto = os.fdopen(os.dup(1), "w", buffering=1)  # the protocol; the commands' own output goes to /dev/null
     devnull = open(os.devnull, "w")
     from pneunet_env.cli import main
-    import agents.maps, agents.search, agents.train, stable_baselines3  # noqa  (imported once, before any timing)
+    import agents.evaluation.map_cli, agents.search.cli, agents.training.cli  # noqa  (imported once, before any timing)
+    import stable_baselines3  # noqa
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     proto.write("ready\\n")
     for line in sys.stdin:
@@ -150,7 +151,7 @@ def _timed(harness: Harness, argv: list[str], folder: Path) -> float:
 
 
 def test_ctrl_c_during_train_leaves_a_run_that_resumes_or_nothing(harness, tmp_path):
-    from agents.train import latest_checkpoint
+    from agents.training.train import latest_checkpoint
 
     rng = random.Random(21)
     span = 1.05 * _timed(harness, TRAIN, tmp_path)

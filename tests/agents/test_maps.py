@@ -7,8 +7,8 @@ import json
 import numpy as np
 import pytest
 
-from agents.maps import ROLES, blocked_fraction_grid, map_config, object_options
-from agents.policies import BEST_RAMP_PATH, BEST_RIGID_PATH
+from agents.evaluation.maps import ROLES, blocked_fraction_grid, map_config, object_options
+from agents.policies.registry import BEST_RAMP_PATH, BEST_RIGID_PATH
 from pneunet_env.cli import main
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"

@@ -10,14 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from agents.policies import (
-    NormalizationStats,
-    RunningStats,
-    SB3Policy,
-    convert_vecnormalize,
-    make_policy,
-    vecnormalize_path,
-)
+from agents.policies.registry import make_policy
+from agents.policies.sb3 import NormalizationStats, RunningStats, SB3Policy, convert_vecnormalize, vecnormalize_path
 
 MODELS = Path(__file__).resolve().parents[2] / "agents" / "models"
 SHIPPED = MODELS / "ppo_pneunet.zip"
@@ -109,7 +103,7 @@ def test_normalization_stats_match_vecnormalize_bit_for_bit(tmp_path):
 
     import pneunet_env  # noqa: F401
 
-    vn = VecNormalize(DummyVecEnv([lambda: gym.make("PneuNetGrasp-v0")]), gamma=0.99, clip_obs=2.5)
+    vn = VecNormalize(DummyVecEnv([lambda: gym.make("PneuNetGrasp-v1")]), gamma=0.99, clip_obs=2.5)
     rng = np.random.default_rng(3)
     vn.obs_rms.update(rng.uniform(0.1, 0.6, (50, 1)))
     vn.ret_rms.update(rng.normal(size=20))
@@ -162,7 +156,7 @@ def test_bad_statistics_files_are_rejected(tmp_path, text, match):
 
 
 def test_statistics_save_is_atomic(tmp_path, monkeypatch):
-    import agents.policies as pol
+    import os
 
     stats = NormalizationStats(False, True, 10.0, 10.0, 1e-8, 0.999, None, None)
     path = stats.save(tmp_path / "s.json")
@@ -171,7 +165,7 @@ def test_statistics_save_is_atomic(tmp_path, monkeypatch):
     def boom(src, dst):
         raise OSError("rename failed")
 
-    monkeypatch.setattr(pol.os, "replace", boom)
+    monkeypatch.setattr(os, "replace", boom)
     with pytest.raises(OSError, match="rename failed"):
         NormalizationStats(True, True, 1.0, 1.0, 1e-8, 0.9, None, None).save(path)
     assert path.read_bytes() == before and [p.name for p in tmp_path.iterdir()] == ["s.json"]
@@ -317,7 +311,7 @@ def test_a_cut_model_zip_is_named(tmp_path, cut):
                                        ("oracle:resolution_kpa=-1", "resolution_kpa")])
 def test_a_spec_with_a_non_finite_or_bad_number_is_refused_by_name_when_parsed(spec, key):
     # inf used to overflow (OverflowError), nan to pass as an unnamed error, the oracle's bad grid to wait for first use
-    from agents.policies import make_policy
+    from agents.policies.registry import make_policy
 
     with pytest.raises(ValueError, match=key):
         make_policy(spec)

@@ -6,7 +6,7 @@ import hashlib
 
 import pytest
 
-from agents import policies
+from agents.policies import registry as policies
 from pneunet_env.config import load_config
 
 

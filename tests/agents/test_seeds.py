@@ -1,5 +1,5 @@
-"""``pneunet-grasp train --seeds N`` (:mod:`agents.seeds`) and the shipped files found by name
-(:mod:`agents.resources`)."""
+"""``pneunet-grasp train --seeds N`` (:mod:`agents.training.seeds`) and the shipped files found by name
+(:mod:`agents.common.resources`)."""
 
 from __future__ import annotations
 
@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from agents import resources
-from agents.seeds import median_seed, summarise
+from agents.common import resources
+from agents.training.seeds import median_seed, summarise
 from pneunet_env.cli import main
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -59,7 +59,7 @@ def test_shipped_configs_and_models_are_found_by_name(tmp_path, monkeypatch):
 
 def test_policy_by_model_name():
     pytest.importorskip("stable_baselines3")
-    from agents.policies import make_policy
+    from agents.policies.registry import make_policy
 
     entry = make_policy("ppo_kitchen")
     assert entry.policy.path == resources.MODELS_DIR / "ppo_kitchen.zip" and entry.policy.action_mode == "setpoint"
@@ -72,7 +72,7 @@ def test_policy_by_model_name():
 @pytest.mark.filterwarnings("ignore::UserWarning")
 def test_seed_study_trains_scores_exports_the_median_and_resumes(tmp_path, capsys):
     pytest.importorskip("stable_baselines3")
-    from agents.policies import make_policy
+    from agents.policies.registry import make_policy
 
     run_dir = tmp_path / "runs"
     argv = ["train", "--config", "ppo", "--seeds", "3", "--timesteps", "512", "--n-envs", "2", "--eval-freq", "256",
@@ -135,7 +135,7 @@ def test_the_command_line_takes_shipped_env_configs_by_name(tmp_path, monkeypatc
 
 
 def test_a_seed_run_is_resumed_only_with_its_own_settings(tmp_path):
-    from agents.seeds import _check_settings, _done
+    from agents.training.seeds import _check_settings, _done
 
     hp = {"seed": 0, "n_timesteps": 1000, "max_train_minutes": 10.0, "torch_threads": 1, "n_envs": 16,
           "env_kwargs": {"observe_volume": True}}

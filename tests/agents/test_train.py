@@ -15,17 +15,17 @@ import numpy as np
 import pytest
 import yaml
 
-from agents.train import (
+from agents.training.config import (
     PROJECT_KEYS,
     ZOO_KEYS,
     action_mode,
-    batched_available,
-    export,
-    latest_checkpoint,
     load_train_config,
     parse_literal,
     project_config_path,
 )
+from agents.training.envs import batched_available
+from agents.training.export import export
+from agents.training.train import latest_checkpoint
 from pneunet_env.cli import main
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -53,11 +53,11 @@ def test_configs_are_plain_rl_zoo3_files(config, algo):
     pytest.importorskip("stable_baselines3")
     import stable_baselines3 as sb3
 
-    main_keys = set(yaml.safe_load(config.read_text())["PneuNetGrasp-v0"])
+    main_keys = set(yaml.safe_load(config.read_text())["PneuNetGrasp-v1"])
     params = set(inspect.signature(getattr(sb3, algo).__init__).parameters) - {"self", "env", "seed", "policy"}
     assert main_keys - set(ZOO_KEYS) <= params, main_keys - set(ZOO_KEYS) - params
     assert not main_keys & set(PROJECT_KEYS) and "action" not in main_keys
-    project = yaml.safe_load(project_config_path(config).read_text())["PneuNetGrasp-v0"]
+    project = yaml.safe_load(project_config_path(config).read_text())["PneuNetGrasp-v1"]
     assert set(project) == set(PROJECT_KEYS)
     assert project_config_path(config).name == config.stem + ".project.yaml"
 
@@ -65,15 +65,15 @@ def test_configs_are_plain_rl_zoo3_files(config, algo):
 def test_legacy_single_file_config_still_loads(tmp_path):
     """A 0.2.0-style config (project keys and ``action: setpoint`` inside the rl-zoo3 file) gives the same settings,
     with a FutureWarning naming the sibling file."""
-    zoo = yaml.safe_load(PPO.read_text())["PneuNetGrasp-v0"]
-    project = yaml.safe_load(project_config_path(PPO).read_text())["PneuNetGrasp-v0"]
+    zoo = yaml.safe_load(PPO.read_text())["PneuNetGrasp-v1"]
+    project = yaml.safe_load(project_config_path(PPO).read_text())["PneuNetGrasp-v1"]
     legacy = {k: v for k, v in zoo.items() if k != "env_wrapper"} | project | {"action": "setpoint"}
     path = tmp_path / "ppo.yaml"
-    path.write_text(yaml.safe_dump({"PneuNetGrasp-v0": legacy}))
+    path.write_text(yaml.safe_dump({"PneuNetGrasp-v1": legacy}))
     with pytest.warns(FutureWarning, match="ppo.project.yaml"):
         hp = load_train_config(path)
     assert hp == load_train_config(PPO)
-    path.write_text(yaml.safe_dump({"PneuNetGrasp-v0": legacy | {"action": "rate"}}))
+    path.write_text(yaml.safe_dump({"PneuNetGrasp-v1": legacy | {"action": "rate"}}))
     with pytest.warns(FutureWarning):
         assert action_mode(load_train_config(path)) == "rate"
 
@@ -91,19 +91,19 @@ def test_parse_literal_reads_rl_zoo_strings_without_eval():
 
 @pytest.mark.parametrize("body, project, match", [
     ("Other-v0: {}", None, "must map"),
-    ("PneuNetGrasp-v0: {}", "PneuNetGrasp-v0: {algo: dqn}", "unknown algo"),
-    ("PneuNetGrasp-v0: {n_envs: 0}", None, "positive integer"),
-    ("PneuNetGrasp-v0: {}", "PneuNetGrasp-v0: {vec_env: subproc}", "vec_env"),
-    ("PneuNetGrasp-v0: {normalize: '[1, 2]'}", None, "normalize"),
-    ("PneuNetGrasp-v0: {}", "PneuNetGrasp-v0: {max_train_minutes: 0}", "max_train_minutes"),
-    ("PneuNetGrasp-v0: {}", "PneuNetGrasp-v0: {n_steps: 64}", "unknown key"),
-    ("PneuNetGrasp-v0: {}", "Other-v0: {seed: 1}", "must map"),
-    ("PneuNetGrasp-v0: {seed: 1}", "PneuNetGrasp-v0: {seed: 2}", "in both"),
-    ("PneuNetGrasp-v0: {env_wrapper: [3]}", None, "env_wrapper"),
-    ("PneuNetGrasp-v0: {callback: {a.B: 1, c.D: 2}}", None, "callback"),
-    ("PneuNetGrasp-v0: {frame_stack: 0}", None, "frame_stack"),
-    ("PneuNetGrasp-v0: {learning_rate: fast}", None, "lin_"),
-    ("PneuNetGrasp-v0: {noise_type: normal}", None, "not supported"),
+    ("PneuNetGrasp-v1: {}", "PneuNetGrasp-v1: {algo: dqn}", "unknown algo"),
+    ("PneuNetGrasp-v1: {n_envs: 0}", None, "positive integer"),
+    ("PneuNetGrasp-v1: {}", "PneuNetGrasp-v1: {vec_env: subproc}", "vec_env"),
+    ("PneuNetGrasp-v1: {normalize: '[1, 2]'}", None, "normalize"),
+    ("PneuNetGrasp-v1: {}", "PneuNetGrasp-v1: {max_train_minutes: 0}", "max_train_minutes"),
+    ("PneuNetGrasp-v1: {}", "PneuNetGrasp-v1: {n_steps: 64}", "unknown key"),
+    ("PneuNetGrasp-v1: {}", "Other-v0: {seed: 1}", "must map"),
+    ("PneuNetGrasp-v1: {seed: 1}", "PneuNetGrasp-v1: {seed: 2}", "in both"),
+    ("PneuNetGrasp-v1: {env_wrapper: [3]}", None, "env_wrapper"),
+    ("PneuNetGrasp-v1: {callback: {a.B: 1, c.D: 2}}", None, "callback"),
+    ("PneuNetGrasp-v1: {frame_stack: 0}", None, "frame_stack"),
+    ("PneuNetGrasp-v1: {learning_rate: fast}", None, "lin_"),
+    ("PneuNetGrasp-v1: {noise_type: normal}", None, "not supported"),
 ])
 def test_bad_configs_are_rejected(tmp_path, body, project, match):
     path = tmp_path / "ppo.yaml"
@@ -120,11 +120,11 @@ def test_bad_configs_are_rejected(tmp_path, body, project, match):
 
 def test_project_file_is_optional_and_rl_zoo3_values_are_read(tmp_path):
     path = tmp_path / "td3_custom.yaml"
-    path.write_text("PneuNetGrasp-v0: {learning_rate: lin_1e-3, train_freq: [1, episode], "
+    path.write_text("PneuNetGrasp-v1: {learning_rate: lin_1e-3, train_freq: [1, episode], "
                     "env_wrapper: [{pneunet_env.wrappers.PressureSetpoint: {step_fraction: 0.1}}], frame_stack: 2}")
     hp = load_train_config(path)
     assert hp["algo"] == "td3" and hp["seed"] == 0 and hp["frame_stack"] == 2 and action_mode(hp) == "setpoint"
-    from agents.train import LinearSchedule, _algo_kwargs
+    from agents.training.config import LinearSchedule, _algo_kwargs
 
     kw = _algo_kwargs(hp)
     assert isinstance(kw["learning_rate"], LinearSchedule) and kw["learning_rate"](0.5) == 0.5e-3
@@ -147,7 +147,7 @@ def test_pneunet_env_wrappers_imports_without_sb3_or_torch():
         "sys.meta_path.insert(0, Block())\n"
         "import gymnasium as gym, pneunet_env\n"
         "from pneunet_env.wrappers import *\n"
-        "env = PressureSetpoint(gym.make('PneuNetGrasp-v0')); env.reset(seed=0); env.step([0.5])\n"
+        "env = PressureSetpoint(gym.make('PneuNetGrasp-v1')); env.reset(seed=0); env.step([0.5])\n"
         "try:\n"
         "    import pneunet_env.wrappers as w; w.PressureSetpointVecEnv\n"
         "except ImportError as exc:\n"
@@ -180,15 +180,14 @@ def test_setpoint_wrapper_and_vec_env_form_send_the_same_actions():
     from stable_baselines3.common.vec_env import DummyVecEnv
 
     import pneunet_env  # noqa: F401
-    from agents.policies import setpoint_to_rate
-    from pneunet_env.wrappers import PressureSetpoint, PressureSetpointVecEnv
+    from pneunet_env.wrappers import PressureSetpoint, PressureSetpointVecEnv, setpoint_to_rate
 
     n = 3
     logs_a: list[list] = [[] for _ in range(n)]
     logs_b: list[list] = [[] for _ in range(n)]
-    per_env = DummyVecEnv([lambda i=i: PressureSetpoint(_Recorder.make(logs_a[i])(gym.make("PneuNetGrasp-v0")))
+    per_env = DummyVecEnv([lambda i=i: PressureSetpoint(_Recorder.make(logs_a[i])(gym.make("PneuNetGrasp-v1")))
                            for i in range(n)])
-    batched = PressureSetpointVecEnv(DummyVecEnv([lambda i=i: _Recorder.make(logs_b[i])(gym.make("PneuNetGrasp-v0"))
+    batched = PressureSetpointVecEnv(DummyVecEnv([lambda i=i: _Recorder.make(logs_b[i])(gym.make("PneuNetGrasp-v1"))
                                                   for i in range(n)]))
     assert batched.step_fraction == per_env.envs[0].step_fraction == 3.0 / 60.0
     for venv in (per_env, batched):
@@ -244,14 +243,14 @@ def test_setpoint_wrapper_needs_reset_and_checks_step_fraction():
     import pneunet_env  # noqa: F401
     from pneunet_env.wrappers import PressureSetpoint
 
-    env = PressureSetpoint(gym.make("PneuNetGrasp-v0"))
+    env = PressureSetpoint(gym.make("PneuNetGrasp-v1"))
     with pytest.raises(gym.error.ResetNeeded):
         env.step([0.0])
     obs, _ = env.reset(seed=1)
     obs, *_ = env.step([1.0])  # command p_max: the pressure rises by the largest step
     assert obs[0] == pytest.approx(3.0 / 60.0)
     with pytest.raises(ValueError, match="step_fraction"):
-        PressureSetpoint(gym.make("PneuNetGrasp-v0"), step_fraction=0.0)
+        PressureSetpoint(gym.make("PneuNetGrasp-v1"), step_fraction=0.0)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -260,7 +259,7 @@ def test_setpoint_wrapper_needs_reset_and_checks_step_fraction():
 
 
 def _fake_run(run_dir: Path, stats: bool = True, tag: str = "new") -> dict:
-    from agents.policies import NormalizationStats, RunningStats
+    from agents.policies.sb3 import NormalizationStats, RunningStats
 
     run_dir.mkdir(parents=True, exist_ok=True)
     (run_dir / "best_model.zip").write_bytes(f"{tag} model".encode() * 1000)
@@ -268,7 +267,7 @@ def _fake_run(run_dir: Path, stats: bool = True, tag: str = "new") -> dict:
         NormalizationStats(False, True, 10.0, 10.0, 1e-8, 0.999, None,
                            RunningStats(np.float64(0.25), np.float64(0.5), 7.0)).save(
             run_dir / "best_model_vecnormalize.json")
-    return {"algo": "ppo", "action": "setpoint", "env_id": "PneuNetGrasp-v0", "seed": 0, "timesteps": 10,
+    return {"algo": "ppo", "action": "setpoint", "env_id": "PneuNetGrasp-v1", "seed": 0, "timesteps": 10,
             "total_wall_s": 1.0, "best_eval": {"timesteps": 5}, "hyperparameters": {}, "versions": {}}
 
 
@@ -279,7 +278,7 @@ def _snapshot(folder: Path) -> dict[str, bytes]:
 def test_export_replaces_files_atomically(tmp_path, monkeypatch):
     """``--export`` never leaves the user without statistics: every file is staged beside its destination, then
     renamed; a failure part-way leaves the previous export whole, and no temporary file behind."""
-    from agents.policies import NormalizationStats
+    from agents.policies.sb3 import NormalizationStats
 
     dest = tmp_path / "models" / "ppo_x"
     export(tmp_path / "old_run", dest, _fake_run(tmp_path / "old_run", tag="old"))
@@ -345,7 +344,7 @@ def _smoke(run_dir: Path, timesteps: int, vec_env: str, extra=(), config: Path =
 @pytest.mark.filterwarnings("ignore::UserWarning")
 def test_smoke_train_resume_export(tmp_path):
     pytest.importorskip("stable_baselines3")
-    from agents.policies import make_policy
+    from agents.policies.registry import make_policy
 
     run_dir = tmp_path / "run"
     vec_env = "batched" if batched_available() else "dummy"
@@ -365,7 +364,7 @@ def test_smoke_train_resume_export(tmp_path):
     ckpt = latest_checkpoint(run_dir)
     assert ckpt is not None and ckpt.name == "model_2048_steps.zip"
     # a model inside the run folder runs as it was trained (its action mode from run.json), not as a rate policy
-    from agents.policies import SB3Policy
+    from agents.policies.sb3 import SB3Policy
 
     assert SB3Policy(run_dir / "best_model.zip").action_mode == "setpoint"
     assert SB3Policy(ckpt).action_mode == "setpoint"
@@ -426,7 +425,7 @@ def test_smoke_sac(tmp_path):
 def test_set_puts_env_keys_in_env_kwargs(tmp_path):
     # `--set observe_volume=true` trains the flow-sensor agent from the same config file; the model runs on that env
     pytest.importorskip("stable_baselines3")
-    from agents.policies import make_policy
+    from agents.policies.registry import make_policy
 
     run_dir = tmp_path / "vol"
     assert _smoke(run_dir, 512, "dummy", ["--set", "observe_volume=true", "--export", str(tmp_path / "m")]) == 0
@@ -457,16 +456,16 @@ def test_full_training_comes_close_to_best_ramp(tmp_path):
     pytest.importorskip("stable_baselines3")
     import gymnasium as gym
 
-    from agents.evaluate import run_episode
-    from agents.policies import make_policy
-    from agents.search import object_seeds
+    from agents.evaluation.episodes import run_episode
+    from agents.policies.registry import make_policy
+    from agents.search.ramp import object_seeds
 
     run_dir = tmp_path / "ppo"
     assert main(["train", "--config", str(PPO), "--run-dir", str(run_dir), "--no-progress", "--timesteps",
                  str(TRAIN_STEPS), "--max-minutes", "120", "--export", str(tmp_path / "ppo_pneunet")]) == 0
     record = json.loads((run_dir / "run.json").read_text())
     assert record["timesteps"] >= TRAIN_STEPS
-    env = gym.make("PneuNetGrasp-v0")
+    env = gym.make("PneuNetGrasp-v1")
     seeds = object_seeds(200, 0)
     rates = {}
     for spec in ("best-ramp", str(tmp_path / "ppo_pneunet.zip")):
@@ -484,7 +483,8 @@ def test_full_training_comes_close_to_best_ramp(tmp_path):
 
 
 def test_threads_flag_and_what_export_says_it_copies(tmp_path):
-    from agents.train import DEFAULTS, export_source
+    from agents.training.config import DEFAULTS
+    from agents.training.export import export_source
 
     assert DEFAULTS["torch_threads"] == 1 and load_train_config(PPO)["torch_threads"] == 1
     with pytest.raises(SystemExit, match="threads"):
@@ -497,7 +497,7 @@ def test_threads_flag_and_what_export_says_it_copies(tmp_path):
 def test_evaluation_verdict_compares_with_step_0():
     """Issue 32: SB3's EvalCallback logged "New best mean reward!" at the first trained evaluation below step 0's
     return (step 0, the untrained policy, is never the best model). The log says so instead."""
-    from agents.train_envs import evaluation_verdict
+    from agents.training.envs import evaluation_verdict
 
     assert "never kept as the best model" in evaluation_verdict(0, 1.6, new_best=True, untrained=None)
     below = evaluation_verdict(10_000, -0.52, new_best=True, untrained=1.6)

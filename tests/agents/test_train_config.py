@@ -1,4 +1,4 @@
-"""The train config (:mod:`agents.train_config`): read by the one YAML reader (duplicate keys refused, YAML 1.2
+"""The train config (:mod:`agents.training.config`): read by the one YAML reader (duplicate keys refused, YAML 1.2
 numbers), only documented classes callable, boolean keyword arguments checked (issue 21). The rl-zoo3 layout, the
 project file and the legacy form: ``test_train.py``."""
 
@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import pytest
 
-from agents.train_config import (
+from agents.training.config import (
     CALLABLE_PACKAGES,
     _algo_kwargs,
     _resolve_policy_kwargs,
@@ -18,10 +18,10 @@ from pneunet_env.config import ConfigTypeError
 
 def _config(tmp_path, body: str, project: str | None = None):
     path = tmp_path / "ppo.yaml"
-    path.write_text("PneuNetGrasp-v0:\n" + "".join(f"  {line}\n" for line in body.strip().splitlines()))
+    path.write_text("PneuNetGrasp-v1:\n" + "".join(f"  {line}\n" for line in body.strip().splitlines()))
     if project is not None:
         (tmp_path / "ppo.project.yaml").write_text(
-            "PneuNetGrasp-v0:\n" + "".join(f"  {line}\n" for line in project.strip().splitlines()))
+            "PneuNetGrasp-v1:\n" + "".join(f"  {line}\n" for line in project.strip().splitlines()))
     return path
 
 

@@ -28,9 +28,9 @@ def test_wrapper_passes_tensors_through():
     import gymnasium as gym
 
     import pneunet_env  # noqa: F401
-    from agents.train_skrl import TorchVecEnvWrapper
+    from agents.training.skrl_ppo import TorchVecEnvWrapper
 
-    env = TorchVecEnvWrapper(gym.make_vec("PneuNetGrasp-v0", num_envs=8, backend="torch"))
+    env = TorchVecEnvWrapper(gym.make_vec("PneuNetGrasp-v1", num_envs=8, backend="torch"))
     obs, _ = env.reset()
     assert obs.shape == (8, 1) and env.num_envs == 8 and env.action_space.shape == (1,)
     obs2, rew, term, trunc, _ = env.step(torch.ones(8, 1))

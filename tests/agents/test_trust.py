@@ -70,8 +70,8 @@ def test_resume_vecnormalize_needs_resume(tmp_path, cli):
 
 def test_resume_statistics_come_from_json_a_named_file_or_the_runs_own_pickle(tmp_path):
     pytest.importorskip("stable_baselines3")
-    from agents.policies import NormalizationStats
-    from agents.train_export import resume_stats
+    from agents.policies.sb3 import NormalizationStats
+    from agents.training.export import resume_stats
 
     vn = _vecnormalize()
     want = NormalizationStats.from_vecnormalize(vn).to_dict()
@@ -116,7 +116,7 @@ def test_statistics_as_numbers_rebuild_what_vecnormalize_load_rebuilds(tmp_path)
     import gymnasium as gym
     from stable_baselines3.common.vec_env import DummyVecEnv, VecNormalize
 
-    from agents.policies import NormalizationStats
+    from agents.policies.sb3 import NormalizationStats
 
     vn = _vecnormalize()
     vn.save(tmp_path / "vn.pkl")
@@ -149,7 +149,7 @@ def test_a_run_resumes_from_its_checkpoints_json_statistics_not_their_pickle(tmp
     """A checkpoint carries its statistics as JSON: ``--resume`` goes on from them; the pickle beside it (here replaced
     by a hostile one) is never loaded."""
     pytest.importorskip("stable_baselines3")
-    from agents.policies import NormalizationStats
+    from agents.policies.sb3 import NormalizationStats
 
     run = tmp_path / "run"
     smoke = ["train", "--config", "ppo", "--run-dir", str(run), "--n-envs", "2", "--eval-freq", "256",
@@ -184,7 +184,7 @@ def test_a_sidecar_that_contradicts_its_models_hyperparameters_is_refused_by_nam
     """Before: a sidecar saying ``"action": "rate"`` beside a model whose recorded hyperparameters name the
     ``PressureSetpoint`` wrapper was believed (demo scored it 25 % instead of 85 %)."""
     pytest.importorskip("stable_baselines3")
-    from agents.policies import make_policy
+    from agents.policies.registry import make_policy
 
     lie = _lie(tmp_path, action="rate")
     with pytest.raises(ValueError) as info:
@@ -211,7 +211,7 @@ def test_a_sidecar_that_contradicts_its_models_hyperparameters_is_refused_by_nam
 
 def test_a_run_record_that_contradicts_itself_is_refused(tmp_path):
     pytest.importorskip("stable_baselines3")
-    from agents.policies import make_policy
+    from agents.policies.registry import make_policy
 
     run = tmp_path / "run"
     run.mkdir()

@@ -1,5 +1,5 @@
 """docs/env.md's table of use cases (force-/position-controlled shares, modulus span) is what
-:func:`agents.evaluate.use_case_regimes` computes from the packaged catalogue."""
+:func:`agents.evaluation.summaries.use_case_regimes` computes from the packaged catalogue."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from agents.evaluate import use_case_regimes
+from agents.evaluation.summaries import use_case_regimes
 from pneunet_env.catalogue import default_use_case, load_use_cases
 
 DOCS = Path(__file__).resolve().parents[2] / "docs" / "env.md"

@@ -32,7 +32,7 @@ def test_rl_zoo3_builds_the_experiment_from_the_config(tmp_path, algo):
     import pneunet_env  # noqa: F401  (what --gym-packages pneunet_env does)
     from pneunet_env.wrappers import PressureSetpoint
 
-    exp = ExperimentManager(argparse.Namespace(), algo, "PneuNetGrasp-v0", str(tmp_path), n_timesteps=1000,
+    exp = ExperimentManager(argparse.Namespace(), algo, "PneuNetGrasp-v1", str(tmp_path), n_timesteps=1000,
                             config=str(CONFIGS / f"{algo}.yaml"), seed=0, verbose=0, device="cpu")
     model, _ = exp.setup_experiment()
     env = model.get_env()
@@ -44,7 +44,7 @@ def test_rl_zoo3_builds_the_experiment_from_the_config(tmp_path, algo):
 
 
 def _zoo(tmp_path: Path, vec_env: str, extra_env: dict[str, str] | None = None) -> tuple[Path, float]:
-    cmd = [sys.executable, "-m", "rl_zoo3.train", "--algo", "ppo", "--env", "PneuNetGrasp-v0",
+    cmd = [sys.executable, "-m", "rl_zoo3.train", "--algo", "ppo", "--env", "PneuNetGrasp-v1",
            "--gym-packages", "pneunet_env", "--conf-file", str(CONFIGS / "ppo.yaml"), "-n", "4096", "--seed", "0",
            "-f", str(tmp_path / "logs"), "--vec-env", vec_env, "--eval-freq", "-1"]
     t0 = time.monotonic()
@@ -53,9 +53,9 @@ def _zoo(tmp_path: Path, vec_env: str, extra_env: dict[str, str] | None = None) 
                          env={**os.environ, "SB3_LOGDIR": str(tmp_path / "sb3_log"), **(extra_env or {})})
     wall = time.monotonic() - t0
     assert res.returncode == 0, res.stdout[-3000:] + res.stderr[-3000:]
-    run = tmp_path / "logs" / "ppo" / "PneuNetGrasp-v0_1"
-    assert (run / "PneuNetGrasp-v0.zip").is_file(), sorted(p.name for p in run.iterdir())
-    config = (run / "PneuNetGrasp-v0" / "config.yml").read_text()
+    run = tmp_path / "logs" / "ppo" / "PneuNetGrasp-v1_1"
+    assert (run / "PneuNetGrasp-v1.zip").is_file(), sorted(p.name for p in run.iterdir())
+    config = (run / "PneuNetGrasp-v1" / "config.yml").read_text()
     assert "pneunet_env.wrappers.PressureSetpoint" in config and "squash_output=True" in config
     return run, wall
 
@@ -64,16 +64,16 @@ def _zoo(tmp_path: Path, vec_env: str, extra_env: dict[str, str] | None = None) 
 @pytest.mark.filterwarnings("ignore::UserWarning")
 def test_rl_zoo3_trains_ppo_yaml_dummy_vec_env(tmp_path):
     pytest.importorskip("rl_zoo3")
-    from agents.policies import SB3Policy
+    from agents.policies.sb3 import SB3Policy
 
     run, wall = _zoo(tmp_path, "dummy")
     print(f"rl-zoo3, dummy vec env, 4096 steps: {wall:.1f} s")  # about 10 s on the idle 2-core machine
     assert len(list(run.glob("*.monitor.csv"))) == 16
     # rl-zoo3's statistics are a pickle, in a subfolder: loaded only because named here
-    pkl = run / "PneuNetGrasp-v0" / "vecnormalize.pkl"
+    pkl = run / "PneuNetGrasp-v1" / "vecnormalize.pkl"
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # nothing to warn about: the pickle is named
-        pol = SB3Policy(run / "PneuNetGrasp-v0.zip", vecnormalize=pkl, action="setpoint")
+        pol = SB3Policy(run / "PneuNetGrasp-v1.zip", vecnormalize=pkl, action="setpoint")
     a = pol(np.array([[0.0], [0.5], [1.0]], np.float32))
     assert a.shape == (3, 1) and np.all(np.abs(a) <= 1.0)
 

@@ -31,7 +31,7 @@ def quick_run(tmp_path_factory):
 def test_quick_run_prints_its_table_and_writes_json_and_png(quick_run):
     rc, out, text, _ = quick_run
     assert rc == 0
-    for row in ("single env", "PneuNetGrasp-v0", "CartPole-v1", "ratio", "vector env", "CartPoleVectorEnv",
+    for row in ("single env", "PneuNetGrasp-v1", "CartPole-v1", "ratio", "vector env", "CartPoleVectorEnv",
                 "solve_equilibrium", "memory at N = 16,384", "accuracy over"):
         assert row in text, row
     for n in speed.NUM_ENVS:
@@ -44,15 +44,15 @@ def test_quick_run_prints_its_table_and_writes_json_and_png(quick_run):
 def test_json_holds_every_figure(quick_run):
     _, _, _, res = quick_run
     single = res["single_env"]
-    for name in ("PneuNetGrasp-v0", "CartPole-v1"):
+    for name in ("PneuNetGrasp-v1", "CartPole-v1"):
         assert 0.0 < single["median_step_s"][name] < 1.0
-    assert single["ratio"] == pytest.approx(single["median_step_s"]["PneuNetGrasp-v0"]
+    assert single["ratio"] == pytest.approx(single["median_step_s"]["PneuNetGrasp-v1"]
                                             / single["median_step_s"]["CartPole-v1"])
     assert [r["num_envs"] for r in res["vector_env"]] == list(speed.NUM_ENVS)
     for r in res["vector_env"]:
         cp = r["steps_per_s"]["CartPole-v1"]
         for p in speed.POLICIES:
-            pn = r["steps_per_s"][f"PneuNetGrasp-v0 {p}"]
+            pn = r["steps_per_s"][f"PneuNetGrasp-v1 {p}"]
             assert pn > 0 and cp > 0 and r["ratio"][p] == pytest.approx(pn / cp)
     s = res["solves"]
     assert s["solve_equilibrium_calls_per_s"] > 0 and s["step_state_calls_per_s"] > 0
@@ -71,13 +71,13 @@ def test_json_holds_every_figure(quick_run):
     if res["backend"] == "numba":
         assert all("ratio_continuation" not in r for r in res["vector_env"][:-1])
         for p in speed.POLICIES:
-            without = last["steps_per_s"][f"PneuNetGrasp-v0 {p}, {speed.CONTINUATION}"]
+            without = last["steps_per_s"][f"PneuNetGrasp-v1 {p}, {speed.CONTINUATION}"]
             assert last["ratio_continuation"][p] == pytest.approx(without / last["steps_per_s"]["CartPole-v1"])
             # the same steps, the table's work against the continuation's (counts, not times)
             w, wc = last["workload"][p], last["workload_continuation"][p]
             assert w["contact_share"] == wc["contact_share"] and w["energy_evaluations"] < wc["energy_evaluations"]
             # the step control "jump", likewise (the same steps: the same contact; its work measured, not asserted)
-            jump = last["steps_per_s"][f"PneuNetGrasp-v0 {p}, {speed.JUMP}"]
+            jump = last["steps_per_s"][f"PneuNetGrasp-v1 {p}, {speed.JUMP}"]
             assert last[f"ratio_{speed.JUMP}"][p] == pytest.approx(jump / last["steps_per_s"]["CartPole-v1"])
             wj = last[f"workload_{speed.JUMP}"][p]
             assert wj["contact_share"] == pytest.approx(w["contact_share"], abs=1e-4) and wj["energy_evaluations"] > 0
@@ -94,7 +94,7 @@ def test_table_and_plot_from_a_result(tmp_path, quick_run):
 
 def test_the_ramp_workload_is_the_shipped_best_ramp():
     """The benchmark's ramp is ``best-ramp`` (``agents/best_ramp.json``) written without ``agents``: same actions."""
-    from agents.policies import make_policy
+    from agents.policies.registry import make_policy
 
     best = json.loads((Path(speed.__file__).resolve().parents[2] / "agents" / "best_ramp.json").read_text())
     assert (speed.RAMP_TARGET_KPA, speed.RAMP_STEPS) == (best["target_kpa"], best["n_steps"])
@@ -109,7 +109,7 @@ def test_workload_counts_per_env_step():
     """The untimed pass's counts: contact and unchanged pressure under the ramp, episode ends, solver work."""
     import gymnasium as gym
 
-    env = gym.make_vec("PneuNetGrasp-v0", num_envs=8, info_level="full", backend="numpy")
+    env = gym.make_vec("PneuNetGrasp-v1", num_envs=8, info_level="full", backend="numpy")
     obs, _ = env.reset(seed=0)
     infos: list = []
     speed._vector_run(env, [None] * 60, infos, speed.ramp_policy(), obs)

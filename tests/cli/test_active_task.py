@@ -9,7 +9,7 @@ import sys
 
 import pytest
 
-from agents.evaluate import damage_rule_text, rate_parts, task_description
+from agents.common.words import damage_rule_text, rate_parts, task_description
 from pneunet_env import PAPER_TASK
 from pneunet_env.cli import require_extra
 from pneunet_env.config import load_config
@@ -112,15 +112,16 @@ def test_a_default_task_option_on_the_paper_task_is_an_error(cli):
     (["evaluate", "--no-plots", "--schedule-stiffness", "1e-2"], "--schedule-stiffness"),
 ])
 def test_an_option_that_would_be_ignored_is_an_error(argv, named, cli, monkeypatch):
-    import agents.evaluate
-    import agents.maps
-    import agents.search
+    import agents.evaluation.evaluate_cli
+    import agents.evaluation.map_cli
+    import agents.search.cli
 
     def no_work(*args, **kwargs):
         raise AssertionError("the work started")
 
-    for module, name in ((agents.search, "sensitivity_study"), (agents.search, "search_ramp"),
-                         (agents.maps, "success_map"), (agents.evaluate, "evaluate_policies")):
+    for module, name in ((agents.search.cli, "sensitivity_study"), (agents.search.cli, "search_ramp"),
+                         (agents.evaluation.map_cli, "success_map"),
+                         (agents.evaluation.evaluate_cli, "evaluate_policies")):
         monkeypatch.setattr(module, name, no_work)
     rc, out, err = cli(argv)
     assert rc == 2 and named in err and err.count("\n") == 1 and "Traceback" not in err
@@ -128,10 +129,10 @@ def test_an_option_that_would_be_ignored_is_an_error(argv, named, cli, monkeypat
 
 # ------------------------------------------------------------------------------------------------ matplotlib
 @pytest.mark.parametrize(("argv", "work"), [
-    (["evaluate", "--policy", "ramp"], ("agents.evaluate", "evaluate_policies")),
-    (["map", "--grid", "1", "1"], ("agents.maps", "success_map")),
-    (["search", "--sensitivity"], ("agents.search", "sensitivity_study")),
-    (["search", "--plot", "x.png"], ("agents.search", "search_ramp")),
+    (["evaluate", "--policy", "ramp"], ("agents.evaluation.evaluate_cli", "evaluate_policies")),
+    (["map", "--grid", "1", "1"], ("agents.evaluation.map_cli", "success_map")),
+    (["search", "--sensitivity"], ("agents.search.cli", "sensitivity_study")),
+    (["search", "--plot", "x.png"], ("agents.search.cli", "search_ramp")),
 ])
 def test_missing_matplotlib_stops_before_any_episode(argv, work, tmp_path, cli, monkeypatch):
     import importlib
@@ -163,8 +164,10 @@ DEFINITION = ("phi (blocked_fraction) is the share of the curl the free finger w
 
 
 def _map_result() -> dict:
-    """A 2 x 2 map's result, without running it: what :func:`agents.maps.plot_map` and the summary read."""
-    from agents.maps import ROLES, _catalogue_boxes, phi_definition, summarize
+    """A 2 x 2 map's result, without running it: what :func:`agents.figures.maps.plot_map` and the summary read."""
+    from agents.common.map_record import summarize
+    from agents.common.words import phi_definition
+    from agents.evaluation.maps import ROLES, _catalogue_boxes
 
     cfg = load_config()
     grid = [[0.0, 1.0], [1.0, 1.0]]
@@ -173,7 +176,7 @@ def _map_result() -> dict:
         "thickness_ratio": 0.25, "density_kg_m3": 1000.0, "failure_strain": 0.3, "damage_rule": "hoop_strain",
         "damage": damage_rule_text(load_config(use_case=None)), "regime_boundary": phi_definition(60.0),
         "task": task_description(cfg), "episodes": 1, "roles": list(ROLES),
-        "policies": {r: {"label": r, "env_id": "PneuNetGrasp-v0", "success": grid, "damage": [[1.0, 0.0], [0.0, 0.0]],
+        "policies": {r: {"label": r, "env_id": "PneuNetGrasp-v1", "success": grid, "damage": [[1.0, 0.0], [0.0, 0.0]],
                          "slip": [[0.0, 0.0], [0.0, 0.0]]} for r in ROLES},
         "phi": [[0.1, 0.9], [0.2, 0.8]],
         "phi_fine": {"youngs_modulus_kpa": [1.0, 1000.0], "radius_mm": [15.0, 40.0], "phi": [[0.1, 0.9], [0.2, 0.8]]},
@@ -188,7 +191,8 @@ def test_map_defines_phi_in_its_figure_and_summary(tmp_path, monkeypatch):
     pytest.importorskip("matplotlib")
     from matplotlib.figure import Figure
 
-    from agents.maps import _report, plot_map
+    from agents.evaluation.map_cli import _report
+    from agents.figures.maps import plot_map
 
     seen = {}
 

@@ -33,24 +33,24 @@ class WorkStarted(BaseException):  # noqa: N818 (not an error: the signal that v
 
 
 WORK: dict[str, list[tuple[str, str]]] = {
-    "demo": [("agents.batch", "policy_episodes"), ("agents.evaluate", "run_episode")],
+    "demo": [("agents.evaluation.batch", "policy_episodes"), ("agents.evaluation.episodes", "run_episode")],
     "solve": [("pneunet_env.cli.solve", "load_path")],
     "render": [("gymnasium", "make")],
     "figures": [("pneunet_env.paper.command", "generate"), ("pneunet_env.paper.command", "load_tables")],
     "bench speed": [("pneunet_env.bench.speed", "run_benchmark"), ("pneunet_env.bench.backends", "run_sweep"),
                     ("pneunet_env.bench.speed", "plot")],
     "bench solvers": [("pneunet_env.bench.solvers", "run_study")],
-    "bench design": [("agents.bench_design", "run_benchmark")],
+    "bench design": [("agents.bench.design", "run_benchmark")],
     "bench render": [("pneunet_env.bench.render_speed", "bench_render")],
-    "bench train": [("agents.bench_train", "bench_train")],
+    "bench train": [("agents.bench.train", "bench_train")],
     "bench gpu": [("pneunet_env.bench.gpu", "run_check")],
-    "evaluate": [("agents.evaluate", "evaluate_policies")],
-    "train": [("agents.train", "train"), ("agents.seeds", "run_seeds")],
-    "train-skrl": [("agents.train_skrl", "train")],
-    "search": [("agents.search", "search_ramp"), ("agents.search", "sensitivity_study")],
+    "evaluate": [("agents.evaluation.evaluate_cli", "evaluate_policies")],
+    "train": [("agents.training.cli", "train"), ("agents.training.seeds", "run_seeds")],
+    "train-skrl": [("agents.training.skrl_ppo", "train")],
+    "search": [("agents.search.cli", "search_ramp"), ("agents.search.cli", "sensitivity_study")],
     "design": [("agents.design.cli", "run_study"), ("agents.design.cli", "work"), ("agents.design.cli", "report"),
                ("agents.design.checks", "run_design_checks")],
-    "map": [("agents.maps", "success_map")],
+    "map": [("agents.evaluation.map_cli", "success_map")],
 }
 """Each command's heavy work: the functions the sweep replaces (a command that is not here fails the sweep)."""
 
@@ -461,9 +461,9 @@ WRITER_FILES = sorted(str(p.relative_to(ROOT)) for p in [*ROOT.joinpath("agents"
 """Every module of the package and of ``agents``; ``pneunet_env/files.py`` is the writer itself."""
 WRITERS = {"write_text", "write_bytes", "savefig", "dump", "save", "savez", "savez_compressed", "to_csv"}
 ALLOWED_WRITES = {
-    ("agents/train.py", "model.save"),  # into an in-memory buffer, then written atomically
-    ("agents/train.py", "NormalizationStats.from_vecnormalize(vn).save"),  # NormalizationStats.save is atomic
-    ("agents/policies.py", "NormalizationStats.from_vecnormalize(load_pickled_vecnormalize(pickle_path)).save"),
+    ("agents/training/train.py", "model.save"),  # into an in-memory buffer, then written atomically
+    ("agents/training/train.py", "NormalizationStats.from_vecnormalize(vn).save"),  # NormalizationStats.save is atomic
+    ("agents/policies/sb3.py", "NormalizationStats.from_vecnormalize(load_pickled_vecnormalize(pickle_path)).save"),
     ("pneunet_env/yamlio.py", "yaml.dump"),  # to a string
 }
 """Calls named like a writer that do not write a file in place (each checked by hand)."""
@@ -488,14 +488,11 @@ def test_every_module_writes_through_the_atomic_writer(path):
     assert not bad, (path, bad)
 
 
-def test_evaluate_is_under_the_house_size_and_its_plots_live_in_agents_plotting():
-    import agents.evaluate
-    import agents.plotting
-
-    assert len((ROOT / "agents/evaluate.py").read_text().splitlines()) <= 800
-    for name in ("_matplotlib", "_style", "plot_success", "plot_schedules", "record_schedules", "nearest_drawn"):
-        assert getattr(agents.evaluate, name) is getattr(agents.plotting, name)  # the old import path still works
-    assert "matplotlib" not in {n.split(".")[0] for n in _top_level_imports(ROOT / "agents/plotting.py")}
+def test_the_figures_import_matplotlib_only_when_they_draw():
+    figures = sorted((ROOT / "agents/figures").glob("*.py"))
+    assert len(figures) >= 5
+    for path in figures:
+        assert "matplotlib" not in {n.split(".")[0] for n in _top_level_imports(path)}, path
 
 
 def _top_level_imports(path: Path) -> set[str]:

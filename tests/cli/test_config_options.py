@@ -8,9 +8,9 @@ from pathlib import Path
 
 import pytest
 
-from agents.evaluate import parse_overrides
-from agents.maps import map_config, task_config
-from agents.policies import BEST_RAMP_PATH, BEST_RIGID_PATH, make_policy, tuned_path
+from agents.common.cli import parse_overrides
+from agents.evaluation.maps import map_config, task_config
+from agents.policies.registry import BEST_RAMP_PATH, BEST_RIGID_PATH, make_policy, tuned_path
 from pneunet_env.cli import main
 from pneunet_env.config import load_config
 

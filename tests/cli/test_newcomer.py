@@ -65,7 +65,7 @@ def test_demo_on_the_papers_task_with_other_objects_suggests_the_papers_settings
                        "object_curvature_per_m=20"])
     assert rc == 0 and len(err.splitlines()) == 1
     assert ("pneunet-grasp search --set use_case=null --set class_weights=null --set damage_rule=crush_fraction "
-            "--set object_curvature_per_m=20 --out best_ramp.json") in err
+            "--set shape=ring --set hold_rule=slab --set object_curvature_per_m=20 --out best_ramp.json") in err
     assert "then pass --policy best-ramp:path=best_ramp.json" in err  # no config file to put it beside
 
 
@@ -83,7 +83,7 @@ def test_evaluate_names_the_ramp_and_warns_as_the_demo_does(fruit, cli):
 def test_schedule_origin_beside_a_config_and_by_path(tmp_path):
     import json
 
-    from agents.policies import BEST_RAMP_PATH, make_policy
+    from agents.policies.registry import BEST_RAMP_PATH, make_policy
     from pneunet_env.config import load_config
 
     cfg_path = tmp_path / "soft.yaml"
@@ -198,12 +198,12 @@ def test_the_first_demo_says_it_is_compiling_and_the_second_does_not(tmp_path):
 @pytest.mark.parametrize("missing", ["stable_baselines3", "torch"])
 def test_train_without_the_rl_extra_names_it_in_one_line_before_any_work(missing, tmp_path, monkeypatch, cli):
     """Before: a 14-line ``ModuleNotFoundError`` traceback."""
-    import agents.train
+    import agents.training.cli
 
     def no_work(*a, **k):
         raise AssertionError("the config was read before the check")
 
-    monkeypatch.setattr(agents.train, "load_train_config", no_work)
+    monkeypatch.setattr(agents.training.cli, "load_train_config", no_work)
     monkeypatch.setitem(sys.modules, missing, None)  # `import <missing>` raises ImportError
     rc, out, err = cli(["train", "--config", "ppo", "--run-dir", str(tmp_path / "run")])
     assert rc == 2 and out == "" and "Traceback" not in err
@@ -223,7 +223,7 @@ def test_a_model_policy_without_the_rl_extra_names_it_in_one_line(argv, tmp_path
 
 
 def test_evaluate_by_default_without_the_rl_extra_says_how_to_do_without(tmp_path, monkeypatch, cli):
-    from agents.evaluate import DEFAULT_MODEL
+    from agents.policies.registry import DEFAULT_MODEL
 
     if not DEFAULT_MODEL.is_file():
         pytest.skip("no shipped model")
@@ -244,7 +244,7 @@ def test_a_missing_extra_found_at_import_is_named_with_its_extra(monkeypatch, cl
     real = importlib.import_module
 
     def fake(name, *a, **k):
-        if name == "agents.bench_train":
+        if name == "agents.bench.train":
             raise ModuleNotFoundError("No module named 'torch'", name="torch")
         return real(name, *a, **k)
 

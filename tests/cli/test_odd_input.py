@@ -110,12 +110,12 @@ def test_the_oracle_plans_on_a_loading_path_that_ends_below_the_maximum(override
     its episode runs without a failed solve."""
     import gymnasium as gym
 
-    from agents.evaluate import run_episode
-    from agents.oracle import Oracle
+    from agents.evaluation.episodes import run_episode
+    from agents.policies.oracle import Oracle
 
     config = load_config(**override)
     oracle = Oracle(config)
-    env = gym.make("PneuNetGrasp-v0", config=config)
+    env = gym.make("PneuNetGrasp-v1", config=config)
     try:
         result = run_episode(env, oracle, seed=0)
     finally:
@@ -252,7 +252,7 @@ def _stats(mean, var=None, count=10.0) -> dict:
     (_stats([0.1], count=float("inf")), "the count must be a finite number"),
     ({**_stats([0.1]), "gamma": 2.0}, "gamma must be in"), ({**_stats([0.1]), "epsilon": float("nan")}, "epsilon")])
 def test_bad_statistics_are_refused_naming_the_file(stats, why):
-    from agents.policies import NormalizationStats
+    from agents.policies.sb3 import NormalizationStats
 
     with pytest.raises(ValueError, match=f"^stats.json: malformed statistics.*{why}"):
         NormalizationStats.from_dict(stats, "stats.json")
@@ -262,7 +262,7 @@ def test_bad_statistics_are_refused_naming_the_file(stats, why):
                                        ([0.1, 0.2], r"have shape \(2,\), but the model observes shape \(1,\)")])
 def test_a_model_with_bad_statistics_beside_it_names_the_file(mean, why, tmp_path):
     pytest.importorskip("stable_baselines3")
-    from agents.policies import SB3Policy
+    from agents.policies.sb3 import SB3Policy
 
     for name in ("ppo_kitchen.zip", "ppo_kitchen.json"):
         shutil.copy(ROOT / "agents" / "models" / name, tmp_path / name)

@@ -16,12 +16,12 @@ from pneunet_env.envs.grasp_vector import PneuNetGraspVectorEnv
 from pneunet_env.envs.rigid import RigidGraspEnv
 
 MAKERS = {
-    "single": lambda: gym.make("PneuNetGrasp-v0"),
-    "single, rgb_array": lambda: gym.make("PneuNetGrasp-v0", render_mode="rgb_array"),
+    "single": lambda: gym.make("PneuNetGrasp-v1"),
+    "single, rgb_array": lambda: gym.make("PneuNetGrasp-v1", render_mode="rgb_array"),
     "rigid": lambda: RigidGraspEnv(),
     "vector": lambda: PneuNetGraspVectorEnv(num_envs=2),
     "vector, numpy": lambda: PneuNetGraspVectorEnv(num_envs=2, backend="numpy"),
-    "make_vec": lambda: gym.make_vec("PneuNetGrasp-v0", num_envs=2, vectorization_mode="vector_entry_point"),
+    "make_vec": lambda: gym.make_vec("PneuNetGrasp-v1", num_envs=2, vectorization_mode="vector_entry_point"),
 }
 
 
@@ -45,7 +45,7 @@ def test_step_and_reset_after_close_are_refused_by_name(name, reset_first):
 
 
 def test_render_after_close_is_refused():
-    env = gym.make("PneuNetGrasp-v0", render_mode="rgb_array")
+    env = gym.make("PneuNetGrasp-v1", render_mode="rgb_array")
     env.reset(seed=0)
     assert env.render().ndim == 3
     env.close()

@@ -22,7 +22,7 @@ from hypothesis import HealthCheck, assume, given, settings
 from hypothesis import strategies as st
 
 import pneunet_env  # noqa: F401  (registers the environments)
-from agents.scripted import MAX_RAMP_STEPS, LinearRamp, StepPolicy, load_ramp
+from agents.policies.scripted import MAX_RAMP_STEPS, LinearRamp, StepPolicy, load_ramp
 from pneunet_env.envs.grasp import PneuNetGraspEnv
 from pneunet_env.envs.grasp_vector import BYTES_PER_ENV, PneuNetGraspVectorEnv, max_num_envs
 from pneunet_env.envs.rigid import RigidGraspEnv

@@ -1,4 +1,4 @@
-"""PneuNetGrasp-v0 through the Gymnasium API: checkers, determinism, actions, physics, reward."""
+"""PneuNetGrasp-v1 through the Gymnasium API: checkers, determinism, actions, physics, reward."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ from gymnasium.error import ResetNeeded
 from gymnasium.utils.env_checker import check_env
 
 import pneunet_env  # noqa: F401  (registers the environment)
-from agents.scripted import LinearRamp, StepPolicy
+from agents.policies.scripted import LinearRamp, StepPolicy
 from pneunet_env import task
 from pneunet_env.envs.grasp import PneuNetGraspEnv
 
@@ -38,14 +38,14 @@ def _episode(env, policy, seed=0, options=None, max_steps=10_000):
 def test_gymnasium_check_env(render_mode):
     if render_mode == "human":
         pytest.importorskip("matplotlib")
-    env = gym.make("PneuNetGrasp-v0", render_mode=render_mode)
+    env = gym.make("PneuNetGrasp-v1", render_mode=render_mode)
     check_env(env.unwrapped, skip_render_check=False)
     env.close()
 
 
 @pytest.mark.filterwarnings("ignore:.*Box observation space (minimum|maximum) value is:UserWarning")
 def test_gymnasium_check_env_sighted_variant():
-    env = gym.make("PneuNetGrasp-v0", observe_volume=True)
+    env = gym.make("PneuNetGrasp-v1", observe_volume=True)
     check_env(env.unwrapped)
     env.close()
 
@@ -57,7 +57,7 @@ def test_sb3_check_env():
 
 
 def test_make_registers_spaces_and_time_limit():
-    env = gym.make("PneuNetGrasp-v0")
+    env = gym.make("PneuNetGrasp-v1")
     assert env.action_space == gym.spaces.Box(-1.0, 1.0, (1,), np.float32)
     assert env.observation_space == gym.spaces.Box(0.0, 1.0, (1,), np.float32)
     traj = _episode(env, StepPolicy(1.0), options={"object_stiffness": 0.05})
@@ -71,7 +71,7 @@ def test_make_registers_spaces_and_time_limit():
 
 
 def test_same_seed_same_episode():
-    env = gym.make("PneuNetGrasp-v0")
+    env = gym.make("PneuNetGrasp-v1")
     rng = np.random.default_rng(0)
     actions = rng.uniform(-1, 1, (100, 1)).astype(np.float32)
 
@@ -100,7 +100,7 @@ def test_same_seed_same_episode():
 
 
 def test_returned_arrays_are_not_reused():
-    env = gym.make("PneuNetGrasp-v0", observe_volume=True)
+    env = gym.make("PneuNetGrasp-v1", observe_volume=True)
     obs0, info0 = env.reset(seed=0)
     keep = obs0.copy()
     obs1, *_ , info1 = env.step(np.array([1.0], np.float32))
@@ -123,7 +123,7 @@ def test_returned_arrays_are_not_reused():
 
 @pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
 def test_non_finite_actions_raise(bad):
-    env = gym.make("PneuNetGrasp-v0")
+    env = gym.make("PneuNetGrasp-v1")
     env.reset(seed=0)
     with pytest.raises(ValueError, match="finite"):
         env.step(np.array([bad], np.float32))
@@ -151,7 +151,7 @@ def test_step_before_reset_raises():
         PneuNetGraspEnv().step(np.array([0.0]))
 
 
-@pytest.mark.parametrize("env_id", ["PneuNetGrasp-v0", "RigidGrasp-v0"])
+@pytest.mark.parametrize("env_id", ["PneuNetGrasp-v1", "RigidGrasp-v1"])
 def test_step_after_the_episode_ended_asks_for_reset(env_id):
     env = gym.make(env_id).unwrapped  # unwrapped: no TimeLimit or order checks in front of it
     env.reset(seed=0, options={"object_stiffness": 1e-2})
@@ -256,7 +256,7 @@ def test_crushing_schedule_gets_the_damage_penalty_and_terminates():
 
 
 def test_too_gentle_schedule_gets_the_slip_penalty():
-    env = gym.make("PneuNetGrasp-v0", info_level="full")
+    env = gym.make("PneuNetGrasp-v1", info_level="full")
     cfg = env.unwrapped.config
     traj = _episode(env, LinearRamp(0.2, 20), options={"object_stiffness": 1e-1})
     _, reward, terminated, truncated, info = traj[-1]
@@ -270,7 +270,7 @@ def test_too_gentle_schedule_gets_the_slip_penalty():
 
 
 def test_firm_schedule_on_a_stiff_object_is_held():
-    env = gym.make("PneuNetGrasp-v0", info_level="full")
+    env = gym.make("PneuNetGrasp-v1", info_level="full")
     cfg = env.unwrapped.config
     traj = _episode(env, StepPolicy(1.0), options={"object_stiffness": 1e-1})
     _, _, terminated, truncated, info = traj[-1]
@@ -285,7 +285,7 @@ def test_firm_schedule_on_a_stiff_object_is_held():
 
 
 def test_reset_pins_and_info_units():
-    env = gym.make("PneuNetGrasp-v0", info_level="full", terminate_on_damage=False, terminate_on_slip=False)
+    env = gym.make("PneuNetGrasp-v1", info_level="full", terminate_on_damage=False, terminate_on_slip=False)
     _, info = env.reset(seed=0, options={"object_shear_modulus_kpa": 15.0, "object_thickness_mm": 8.0})
     assert info["object_shear_modulus_kpa"] == 15.0 and info["object_thickness_mm"] == 8.0
     assert info["pressure"] == 0.0 and info["curvature"] == 0.0 and not info["in_contact"]
@@ -307,7 +307,7 @@ def test_reset_pins_and_info_units():
 
 
 def test_free_actuator_episode():
-    env = gym.make("PneuNetGrasp-v0", info_level="full")
+    env = gym.make("PneuNetGrasp-v1", info_level="full")
     traj = _episode(env, StepPolicy(1.0), options={"object_stiffness": 0.0})
     info = traj[-1][4]
     assert info["dropped"] and not info["damaged"] and info["contact_force"] == 0.0 and info["indentation"] == 0.0
@@ -351,18 +351,18 @@ def test_step_policy_and_batched_predict():
 
 
 def test_lean_info_keys_and_the_objects_constants_at_reset():
-    env = gym.make("PneuNetGrasp-v0")
+    env = gym.make("PneuNetGrasp-v1")
     _, info = env.reset(seed=3)
     assert set(info) == set(task.LEAN_KEYS) | set(task.OBJECT_KEYS)
     _, _, _, _, info = env.step(np.array([1.0], np.float32))
     assert set(info) == set(task.LEAN_KEYS)
-    full = gym.make("PneuNetGrasp-v0", info_level="full")
+    full = gym.make("PneuNetGrasp-v1", info_level="full")
     _, info_r = full.reset(seed=3)
     _, _, _, _, info_f = full.step(np.array([1.0], np.float32))
     assert set(info_f) == set(task.FULL_KEYS) and set(task.LEAN_KEYS) | set(task.OBJECT_KEYS) <= set(info_f)
     assert all(info_f[k] == info[k] for k in task.LEAN_KEYS)  # the lean keys are the full info's, unchanged
     with pytest.raises(ValueError, match="info_level"):
-        gym.make("PneuNetGrasp-v0", info_level="everything")
+        gym.make("PneuNetGrasp-v1", info_level="everything")
 
 
 # ---- one shell for the single envs ---------------------------------------------------------------------------
@@ -398,7 +398,7 @@ def test_rigid_env_is_stepped_by_the_shared_shell():
     closure as the command (the task's command ceiling holds the travel in mm), and its render refusal named."""
     from pneunet_env.envs.rigid import RigidGraspEnv, jaw_task_params
 
-    env = gym.make("RigidGrasp-v0").unwrapped
+    env = gym.make("RigidGrasp-v1").unwrapped
     with pytest.raises(ResetNeeded, match="call reset"):
         env.step(np.ones(1, np.float32))
     env.reset(seed=0)
@@ -415,5 +415,5 @@ def test_rigid_env_is_stepped_by_the_shared_shell():
     assert "is_success" in info
     with pytest.raises(ResetNeeded, match="ended"):
         env.step(np.ones(1, np.float32))
-    with pytest.raises(ValueError, match="RigidGrasp-v0 does not render"):
+    with pytest.raises(ValueError, match="RigidGrasp-v1 does not render"):
         RigidGraspEnv(render_mode="rgb_array")

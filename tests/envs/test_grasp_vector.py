@@ -76,7 +76,7 @@ def test_vector_env_equals_n_single_envs_with_auto_resets(backend):
     """The brief's check, written out: N gym.make envs seeded s+i, each reset when its episode ends."""
     n, steps, seed = 6, 150, 21
     kw = dict(VARIED, free_table=backend != "numpy")  # numpy's array step has no free table: the singles neither
-    singles = [gym.make("PneuNetGrasp-v0", max_episode_steps=16, **kw) for _ in range(n)]
+    singles = [gym.make("PneuNetGrasp-v1", max_episode_steps=16, **kw) for _ in range(n)]
     vec = PneuNetGraspVectorEnv(n, max_episode_steps=16, backend=backend, **kw)
     actions = np.random.default_rng(0).uniform(-1.3, 1.3, (steps, n, 1)).astype(np.float32)
 
@@ -122,10 +122,10 @@ def test_vector_env_is_the_sync_vector_env_of_single_envs(backend, mode, objects
     n, steps = 5, 120
     kw = dict(VARIED if objects == "ranges" else CATALOGUE, max_episode_steps=16,
               free_table=backend != "numpy")  # numpy's array step has no free table: the singles neither
-    ref = gym.make_vec("PneuNetGrasp-v0", num_envs=n, vectorization_mode="sync",
+    ref = gym.make_vec("PneuNetGrasp-v1", num_envs=n, vectorization_mode="sync",
                        vector_kwargs={"autoreset_mode": mode}, **kw)
     extra = {} if mode is AutoresetMode.SAME_STEP else {"autoreset_mode": mode}
-    vec = gym.make_vec("PneuNetGrasp-v0", num_envs=n, backend=backend, **kw, **extra)
+    vec = gym.make_vec("PneuNetGrasp-v1", num_envs=n, backend=backend, **kw, **extra)
     assert isinstance(vec.unwrapped, PneuNetGraspVectorEnv)
     NAMES = vec.unwrapped.object_class_names
     assert vec.metadata["autoreset_mode"] is mode
@@ -143,8 +143,8 @@ def test_vector_env_is_the_sync_vector_env_of_single_envs(backend, mode, objects
 def test_default_config_run_converges_and_matches_singles_at_scale():
     """64 envs at the default config over 250 steps (two and a half episodes): every solve converged."""
     n, steps = 64, 250
-    vec = gym.make_vec("PneuNetGrasp-v0", num_envs=n, info_level="full")
-    singles = [gym.make("PneuNetGrasp-v0") for _ in range(n)]
+    vec = gym.make_vec("PneuNetGrasp-v1", num_envs=n, info_level="full")
+    singles = [gym.make("PneuNetGrasp-v1") for _ in range(n)]
     actions = np.random.default_rng(2).uniform(-1.0, 1.0, (steps, n, 1)).astype(np.float32)
     obs, _ = vec.reset(seed=100)
     for i, env in enumerate(singles):
@@ -194,7 +194,7 @@ def test_sub_env_streams_are_the_single_envs_np_random():
     vec = PneuNetGraspVectorEnv(3)
     vec.reset(seed=7)
     for i in range(3):
-        single = gym.make("PneuNetGrasp-v0")
+        single = gym.make("PneuNetGrasp-v1")
         single.reset(seed=7 + i)
         assert np.array_equal(vec.sub_env_generator(i).random(8), single.unwrapped.np_random.random(8))
 
@@ -221,12 +221,12 @@ def test_seeding_rules():
 
 
 def test_make_vec_uses_the_native_env_with_the_registered_time_limit(recwarn):
-    env = gym.make_vec("PneuNetGrasp-v0", num_envs=3)
+    env = gym.make_vec("PneuNetGrasp-v1", num_envs=3)
     assert isinstance(env, PneuNetGraspVectorEnv) and env.num_envs == 3
     assert env.max_episode_steps == 100
     assert env.metadata["autoreset_mode"] is AutoresetMode.SAME_STEP
     assert not [w for w in recwarn if "autoreset" in str(w.message).lower()]
-    env2 = gym.make_vec("PneuNetGrasp-v0", num_envs=2, observe_volume=True, hold_steps=10, max_episode_steps=60)
+    env2 = gym.make_vec("PneuNetGrasp-v1", num_envs=2, observe_volume=True, hold_steps=10, max_episode_steps=60)
     assert env2.config.task.hold_steps == 10 and env2.max_episode_steps == 60
     assert env2.single_observation_space.shape == (2,)
 
@@ -240,7 +240,7 @@ def test_spaces_and_returned_types():
     assert env.observation_space == gym.spaces.Box(0.0, 1.0, (n, 1), np.float32)
     obs, info = env.reset(seed=0)
     assert obs.shape == (n, 1) and obs.dtype == np.float32 and env.observation_space.contains(obs)
-    single_keys = set(gym.make("PneuNetGrasp-v0").reset(seed=0)[1])
+    single_keys = set(gym.make("PneuNetGrasp-v1").reset(seed=0)[1])
     assert {k for k in info if not k.startswith("_")} == single_keys
     for k in single_keys:
         assert info[k].shape == (n,) and info[f"_{k}"].dtype == bool and info[f"_{k}"].all(), k
@@ -343,7 +343,7 @@ def test_gymnasium_vector_wrappers_handle_it():
 
 def test_render_rgb_array_matches_the_single_env():
     env = PneuNetGraspVectorEnv(2, render_mode="rgb_array")
-    single = gym.make("PneuNetGrasp-v0", render_mode="rgb_array")
+    single = gym.make("PneuNetGrasp-v1", render_mode="rgb_array")
     env.reset(seed=4)
     single.reset(seed=5)  # sub-env 1
     for _ in range(12):
@@ -358,7 +358,7 @@ def test_render_rgb_array_matches_the_single_env():
 
 def test_equilibrium_of_a_sub_env_is_the_single_envs():
     env = PneuNetGraspVectorEnv(2)
-    single = gym.make("PneuNetGrasp-v0")
+    single = gym.make("PneuNetGrasp-v1")
     env.reset(seed=0, options={"object_stiffness": 1e-3})
     single.reset(seed=1, options={"object_stiffness": 1e-3})
     for _ in range(10):
@@ -475,32 +475,32 @@ def test_autoreset_mode_is_checked_and_named():
 def test_info_keys_build_only_what_is_asked():
     from pneunet_env import task
 
-    full = gym.make_vec("PneuNetGrasp-v0", num_envs=4, info_level="full")
+    full = gym.make_vec("PneuNetGrasp-v1", num_envs=4, info_level="full")
     full.reset(seed=0)
     info = full.step(np.zeros((4, 1)))[4]
     assert {k for k in info if not k.startswith("_")} == set(task.FULL_KEYS)
-    some = gym.make_vec("PneuNetGrasp-v0", num_envs=4, info_keys=("pressure_kpa", "held"))
+    some = gym.make_vec("PneuNetGrasp-v1", num_envs=4, info_keys=("pressure_kpa", "held"))
     _, info = some.reset(seed=0)
     assert set(info) == {"pressure_kpa", "_pressure_kpa", "held", "_held"}
-    none = gym.make_vec("PneuNetGrasp-v0", num_envs=4, info_keys=())
+    none = gym.make_vec("PneuNetGrasp-v1", num_envs=4, info_keys=())
     _, info = none.reset(seed=0)
     assert info == {}
     for _ in range(none.unwrapped.config.episode_steps):
         obs, _, term, trunc, info = none.step(np.ones((4, 1)))
     assert set(info) == {"final_obs", "_final_obs", "final_info", "_final_info"} and "is_success" in info["final_info"]
     with pytest.raises(ValueError, match="not keys"):
-        gym.make_vec("PneuNetGrasp-v0", num_envs=2, info_keys=("nope",))
+        gym.make_vec("PneuNetGrasp-v1", num_envs=2, info_keys=("nope",))
     with pytest.raises(ValueError, match="sequence"):
-        gym.make_vec("PneuNetGrasp-v0", num_envs=2, info_keys="pressure_kpa")
+        gym.make_vec("PneuNetGrasp-v1", num_envs=2, info_keys="pressure_kpa")
 
 
 def test_a_cpu_tensor_action_steps_the_numpy_backends():
     """A CPU torch tensor is real numbers to the numpy and numba backends, as numpy takes it (not a crash)."""
     torch = pytest.importorskip("torch")
     for backend in ["numpy"] + (["numba"] if HAVE_NUMBA else []):
-        env = gym.make_vec("PneuNetGrasp-v0", num_envs=4, backend=backend)
+        env = gym.make_vec("PneuNetGrasp-v1", num_envs=4, backend=backend)
         env.reset(seed=0)
-        ref = gym.make_vec("PneuNetGrasp-v0", num_envs=4, backend=backend)
+        ref = gym.make_vec("PneuNetGrasp-v1", num_envs=4, backend=backend)
         ref.reset(seed=0)
         obs, *_ = env.step(torch.full((4, 1), 0.5))
         assert isinstance(obs, np.ndarray) and np.array_equal(obs, ref.step(np.full((4, 1), 0.5))[0])
@@ -548,8 +548,8 @@ def test_vector_env_is_n_single_envs_bit_for_bit(mode):
     step through the same compiled loop, so nothing may differ, not even a last bit, on any machine.
     """
     n, steps = 16, 120
-    ours = gym.make_vec("PneuNetGrasp-v0", num_envs=n, info_level="full", autoreset_mode=mode)
-    sync = gym.make_vec("PneuNetGrasp-v0", num_envs=n, info_level="full", vectorization_mode="sync",
+    ours = gym.make_vec("PneuNetGrasp-v1", num_envs=n, info_level="full", autoreset_mode=mode)
+    sync = gym.make_vec("PneuNetGrasp-v1", num_envs=n, info_level="full", vectorization_mode="sync",
                         vector_kwargs={"autoreset_mode": mode})
     actions = np.random.default_rng(5).uniform(-1.0, 1.0, (steps, n, 1)).astype(np.float32)
     bad: list[str] = []
@@ -579,8 +579,8 @@ def test_seeded_partial_resets_reseed_only_the_envs_they_reset_as_sync_vector_en
     from gymnasium.vector import SyncVectorEnv
 
     n = 4
-    ours = gym.make_vec("PneuNetGrasp-v0", num_envs=n)
-    sync = SyncVectorEnv([lambda: gym.make("PneuNetGrasp-v0") for _ in range(n)])
+    ours = gym.make_vec("PneuNetGrasp-v1", num_envs=n)
+    sync = SyncVectorEnv([lambda: gym.make("PneuNetGrasp-v1") for _ in range(n)])
 
     def stiffness(info, mask):
         return np.where(mask, np.asarray(info["object_stiffness"], float), np.nan)

@@ -68,7 +68,7 @@ REFERENCE_CASES = (
 
 def _env_state(options: dict, steps: int, size: tuple[int, int]):
     """The env's render state and render config after ``steps`` steps of ``+1`` (damage and slip don't end it)."""
-    env = gym.make("PneuNetGrasp-v0", render_mode="rgb_array", render_width=size[0], render_height=size[1],
+    env = gym.make("PneuNetGrasp-v1", render_mode="rgb_array", render_width=size[0], render_height=size[1],
                    terminate_on_damage=False, terminate_on_slip=False)
     env.reset(seed=0, options=options)
     for _ in range(steps):
@@ -151,7 +151,7 @@ def test_frames_match_the_reference_frames():
 
 def test_the_env_renders_what_render_frame_draws_of_its_state():
     state, frame = _env_state({"object_stiffness": 1e-4}, 5, (160, 120))
-    env = gym.make("PneuNetGrasp-v0", render_mode="rgb_array", render_width=160, render_height=120,
+    env = gym.make("PneuNetGrasp-v1", render_mode="rgb_array", render_width=160, render_height=120,
                    terminate_on_damage=False, terminate_on_slip=False)
     env.reset(seed=0, options={"object_stiffness": 1e-4})
     for _ in range(5):
@@ -248,7 +248,7 @@ def test_the_env_draws_the_crushed_film_by_the_damage_rule_in_force(overrides):
 
 
 def test_render_modes_through_the_env(monkeypatch):
-    env = gym.make("PneuNetGrasp-v0", render_mode="rgb_array", render_width=160, render_height=120,
+    env = gym.make("PneuNetGrasp-v1", render_mode="rgb_array", render_width=160, render_height=120,
                    terminate_on_damage=False)
     env.reset(seed=0, options={"object_stiffness": 1e-5})
     f0 = env.render()
@@ -260,7 +260,7 @@ def test_render_modes_through_the_env(monkeypatch):
     env.close()
     pytest.importorskip("matplotlib")
     monkeypatch.setenv("MPLBACKEND", "Agg")
-    env = gym.make("PneuNetGrasp-v0", render_mode="human", render_width=160, render_height=120)
+    env = gym.make("PneuNetGrasp-v1", render_mode="human", render_width=160, render_height=120)
     env.reset(seed=0)
     env.step(np.array([1.0]))
     assert env.render() is None
@@ -268,7 +268,7 @@ def test_render_modes_through_the_env(monkeypatch):
 
 
 def test_render_without_mode_warns_and_returns_none():
-    env = gym.make("PneuNetGrasp-v0").unwrapped
+    env = gym.make("PneuNetGrasp-v1").unwrapped
     env.reset(seed=0)
     with pytest.warns(UserWarning, match="render"):
         assert env.render() is None
@@ -418,10 +418,10 @@ def test_the_env_labels_its_frames_with_the_class_or_the_stiffness():
         assert not np.array_equal(frame, render_frame(state, 240, 180, label=False))
         return label_lines(state)[0][0]
 
-    env = gym.make("PneuNetGrasp-v0")
+    env = gym.make("PneuNetGrasp-v1")
     _, info = env.reset(seed=2)
-    assert first_line("PneuNetGrasp-v0") == info["object_class"]  # a kitchen class
-    assert first_line("PneuNetGrasp-v0", {"object_stiffness": 1e-4}) == "k~=1.0e-4"  # pinned: not the class's
+    assert first_line("PneuNetGrasp-v1") == info["object_class"]  # a kitchen class
+    assert first_line("PneuNetGrasp-v1", {"object_stiffness": 1e-4}) == "k~=1.0e-4"  # pinned: not the class's
     assert first_line("PneuNetGrasp-Paper-v0", {"object_stiffness": 1e-5}) == "k~=1.0e-5"  # no classes
 
 

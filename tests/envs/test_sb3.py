@@ -36,7 +36,7 @@ def _same(a, b, where):
 def test_same_as_dummy_vec_env_of_single_envs(info_keys):
     """Obs, rewards, dones, terminal_observation, TimeLimit.truncated, is_success, reset_infos: DummyVecEnv's."""
     n = 5
-    ref = DummyVecEnv([lambda: gym.make("PneuNetGrasp-v0", **SHORT) for _ in range(n)])
+    ref = DummyVecEnv([lambda: gym.make("PneuNetGrasp-v1", **SHORT) for _ in range(n)])
     ours = SB3VecEnv(num_envs=n, info_keys=info_keys, **SHORT)
     assert isinstance(ours, VecEnv) and ours.num_envs == n
     assert ours.observation_space == ref.observation_space and ours.action_space == ref.action_space
@@ -101,7 +101,7 @@ def test_vec_env_api():
 
 
 def test_rejects_a_next_step_vector_env_and_bad_arguments():
-    sync = gym.make_vec("PneuNetGrasp-v0", num_envs=2, vectorization_mode="sync")  # NEXT_STEP
+    sync = gym.make_vec("PneuNetGrasp-v1", num_envs=2, vectorization_mode="sync")  # NEXT_STEP
     with pytest.raises(ValueError, match="SAME_STEP"):
         SB3VecEnv(sync)
     with pytest.raises(ValueError, match="num_envs"):
@@ -142,7 +142,7 @@ def test_ppo_trains_a_few_thousand_steps_and_eval_callback_reads_success(tmp_pat
     from stable_baselines3 import PPO
     from stable_baselines3.common.callbacks import EvalCallback
 
-    from agents.train import no_folder_logger
+    from agents.training.train import no_folder_logger
 
     venv = VecMonitor(SB3VecEnv(num_envs=16))
     eval_env = VecMonitor(SB3VecEnv(num_envs=4))
@@ -162,7 +162,7 @@ def test_ppo_trains_a_few_thousand_steps_and_eval_callback_reads_success(tmp_pat
 def test_sac_runs_on_it():
     from stable_baselines3 import SAC
 
-    from agents.train import no_folder_logger
+    from agents.training.train import no_folder_logger
 
     venv = SB3VecEnv(num_envs=4)
     model = SAC("MlpPolicy", venv, learning_starts=64, batch_size=64, train_freq=8, gradient_steps=1, seed=0,

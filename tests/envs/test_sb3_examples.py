@@ -109,7 +109,7 @@ def test_example_trains_with_ppo_yaml(code, prose):
     sets nothing else but ``seed``."""
     from stable_baselines3 import PPO
 
-    from agents.train_config import _algo_kwargs, load_train_config
+    from agents.training.config import _algo_kwargs, load_train_config
 
     hp = load_train_config(ROOT / "configs" / "train" / "ppo.yaml")
     tree = ast.parse(code)

@@ -91,10 +91,10 @@ def _host(x):
 
 @pytest.mark.parametrize("device", DEVICES)
 @pytest.mark.parametrize("env_id,mode,control", [
-    pytest.param("PneuNetGrasp-v0", "SameStep", "jump", marks=pytest.mark.slow),  # 10 s: every param runs in CI
-    pytest.param("PneuNetGrasp-v0", "NextStep", "jump", marks=pytest.mark.slow),
+    pytest.param("PneuNetGrasp-v1", "SameStep", "jump", marks=pytest.mark.slow),  # 10 s: every param runs in CI
+    pytest.param("PneuNetGrasp-v1", "NextStep", "jump", marks=pytest.mark.slow),
     pytest.param("PneuNetGrasp-Paper-v0", "SameStep", "jump", marks=pytest.mark.slow),
-    pytest.param("PneuNetGrasp-v0", "SameStep", "branch", marks=pytest.mark.slow),
+    pytest.param("PneuNetGrasp-v1", "SameStep", "branch", marks=pytest.mark.slow),
     pytest.param("PneuNetGrasp-Paper-v0", "SameStep", "branch", marks=pytest.mark.slow),
 ])
 def test_torch_vector_env_agrees_with_numba_through_autoresets(env_id, mode, control, device):
@@ -156,16 +156,16 @@ def test_torch_vector_env_agrees_with_numba_through_autoresets(env_id, mode, con
 
 
 def test_torch_vector_env_seeding_and_arguments():
-    a = gym.make_vec("PneuNetGrasp-v0", num_envs=4, backend="torch")
-    b = gym.make_vec("PneuNetGrasp-v0", num_envs=4, backend="numpy")
+    a = gym.make_vec("PneuNetGrasp-v1", num_envs=4, backend="torch")
+    b = gym.make_vec("PneuNetGrasp-v1", num_envs=4, backend="numpy")
     _, ia = a.reset(seed=[3, 4, 5, 6])
     _, ib = b.reset(seed=[3, 4, 5, 6])
     assert np.array_equal(_host(ia["object_stiffness"]), ib["object_stiffness"])
     assert a.state_nbytes() > 0 and a.device == torch.device("cpu")
     with pytest.raises(ValueError, match="device"):
-        gym.make_vec("PneuNetGrasp-v0", num_envs=2, backend="numpy", device="cpu")
+        gym.make_vec("PneuNetGrasp-v1", num_envs=2, backend="numpy", device="cpu")
     with pytest.raises(ValueError, match="device"):
-        gym.make_vec("PneuNetGrasp-v0", num_envs=2, backend="torch", device="nowhere")
+        gym.make_vec("PneuNetGrasp-v1", num_envs=2, backend="torch", device="nowhere")
     with pytest.raises(ValueError, match=r"actions\[1\]"):
         a.step(torch.tensor([[0.1], [float("nan")], [0.0], [0.0]]))
     with pytest.raises(ValueError, match="shape"):
@@ -177,7 +177,7 @@ def test_torch_vector_env_seeding_and_arguments():
 
 
 def test_torch_vector_env_renders_and_reports_objects():
-    env = gym.make_vec("PneuNetGrasp-v0", num_envs=2, backend="torch", render_mode="rgb_array")
+    env = gym.make_vec("PneuNetGrasp-v1", num_envs=2, backend="torch", render_mode="rgb_array")
     env.reset(seed=0)
     env.step(torch.ones(2, 1))
     frames = env.render()

@@ -191,7 +191,7 @@ def test_the_vector_env_with_the_table_is_the_env_without_it(policy):
     autoresets: every observation, reward, flag and status the same, the states within 1e-9, every solve a converged
     minimum, and fewer energy evaluations."""
     n = 96
-    envs = [gym.make_vec("PneuNetGrasp-v0", num_envs=n, info_level="full", free_table=f) for f in (True, False)]
+    envs = [gym.make_vec("PneuNetGrasp-v1", num_envs=n, info_level="full", free_table=f) for f in (True, False)]
     obs = [e.reset(seed=7)[0] for e in envs]
     rng = np.random.default_rng(7)
     evals = [0, 0]
@@ -222,7 +222,7 @@ def test_the_vector_env_with_the_table_is_the_env_without_it(policy):
 
 @pytest.mark.skipif(not HAVE_NUMBA, reason="the table is used by the compiled steps (numba)")
 def test_the_single_env_uses_the_table():
-    envs = [gym.make("PneuNetGrasp-v0", info_level="full", free_table=f) for f in (True, False)]
+    envs = [gym.make("PneuNetGrasp-v1", info_level="full", free_table=f) for f in (True, False)]
     for e in envs:
         e.reset(seed=3)
     for _ in range(10):

@@ -71,8 +71,8 @@ CHILD = textwrap.dedent('''
         return call, (lambda: None)
 
     paths = {
-        "single env": lambda: single("PneuNetGrasp-v0"),
-        "rigid env": lambda: single("RigidGrasp-v0"),
+        "single env": lambda: single("PneuNetGrasp-v1"),
+        "rigid env": lambda: single("RigidGrasp-v1"),
         "vector env, fused": lambda: vector(fused=True),
         "vector env, batched serial": lambda: vector(fused=False, parallel=False),
         "vector env, batched parallel": lambda: vector(fused=False, parallel=True),

@@ -83,7 +83,7 @@ def test_step_control_is_checked():
         with pytest.raises(ValueError, match="step_control"):
             SolverOptions(step_control=bad)
     with pytest.raises(ValueError, match="step_control"):
-        gym.make_vec("PneuNetGrasp-v0", num_envs=2, backend="numpy", step_control="Branch")
+        gym.make_vec("PneuNetGrasp-v1", num_envs=2, backend="numpy", step_control="Branch")
 
 
 @pytest.mark.parametrize("gent", [50.0, 20.0])
@@ -116,7 +116,7 @@ def test_the_masked_solver_makes_the_scalar_solvers_decisions_under_branch_contr
 
 def test_the_numpy_vector_env_steps_like_the_compiled_one_under_branch_control():
     kw = {"num_envs": 6, "step_control": "branch", "free_table": False, "info_level": "full"}
-    envs = [gym.make_vec("PneuNetGrasp-v0", backend=b, **kw) for b in ("numpy",) + (("numba",) if HAVE_FUSED else ())]
+    envs = [gym.make_vec("PneuNetGrasp-v1", backend=b, **kw) for b in ("numpy",) + (("numba",) if HAVE_FUSED else ())]
     for e in envs:
         e.reset(seed=4)
     rng = np.random.default_rng(0)
@@ -136,9 +136,9 @@ def test_the_envs_step_under_branch_control():
     ramp into stiff objects, every solve converged, and the single env's states those of the vector env's."""
     n = 8
     kw = {"step_control": "branch", "terminate_on_damage": False, "terminate_on_slip": False}
-    vec = gym.make_vec("PneuNetGrasp-v0", num_envs=n, **kw)
+    vec = gym.make_vec("PneuNetGrasp-v1", num_envs=n, **kw)
     vec.reset(seed=1)
-    singles = [gym.make("PneuNetGrasp-v0", **kw) for _ in range(n)]
+    singles = [gym.make("PneuNetGrasp-v1", **kw) for _ in range(n)]
     for i, e in enumerate(singles):
         e.reset(seed=1 + i)
     a = np.full((n, 1), 0.6, np.float32)

@@ -61,7 +61,7 @@ def test_a_venv_with_tbb_in_its_lib_runs_the_parallel_step_on_tbb(tmp_path):
     (site / "outer.pth").write_text("\n".join(dict.fromkeys(paths)) + "\n")
     code = ("import numpy as np, gymnasium as gym, numba, pneunet_env\n"
             "from pneunet_env.physics import batched\n"
-            "env = gym.make_vec('PneuNetGrasp-v0', num_envs=2048, parallel=True)\n"
+            "env = gym.make_vec('PneuNetGrasp-v1', num_envs=2048, parallel=True)\n"
             "env.reset(seed=0); env.step(np.zeros((2048, 1)))\n"
             "print(batched.TBB_LOADED, numba.threading_layer())\n")
     res = subprocess.run([str(venv / "bin" / "python"), "-c", code], capture_output=True, text=True, env=env,

@@ -15,7 +15,7 @@ from pneunet_env.bench.speed import ramp_policy
 N = 16384
 CONTROL = {"step_control": os.environ.get("STEP_CONTROL", "jump")}
 pol = ramp_policy()
-env = gym.make_vec("PneuNetGrasp-v0", num_envs=N, info_level="full", **CONTROL)
+env = gym.make_vec("PneuNetGrasp-v1", num_envs=N, info_level="full", **CONTROL)
 obs, _ = env.reset(seed=5)
 ev = n = 0
 for _ in range(200):
@@ -24,7 +24,7 @@ for _ in range(200):
     if "final_info" in info:
         e = np.where(info["final_info"]["_pressure"], info["final_info"]["solver_evaluations"], e)
     ev, n = ev + e.sum(), n + e.size
-env = gym.make_vec("PneuNetGrasp-v0", num_envs=N, **CONTROL)
+env = gym.make_vec("PneuNetGrasp-v1", num_envs=N, **CONTROL)
 obs, _ = env.reset(seed=5)
 for _ in range(30):
     obs, *_ = env.step(pol(obs))

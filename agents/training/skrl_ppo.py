@@ -1,7 +1,7 @@
 """PPO from skrl, trained where the env lives: on the torch backend, tensors in and out, on a CPU or a GPU.
 
 ``pneunet-grasp train-skrl --device cuda --num-envs 65536 --minutes 10`` (needs the ``skrl`` extra, and a CUDA torch
-for a GPU). The env is ``gym.make_vec("PneuNetGrasp-v0", num_envs=N, backend="torch", device=...)``; skrl drives it
+for a GPU). The env is ``gym.make_vec("PneuNetGrasp-v1", num_envs=N, backend="torch", device=...)``; skrl drives it
 through :class:`TorchVecEnvWrapper`, an implementation of skrl's own environment-wrapper interface
 (``skrl.envs.wrappers.torch.base.Wrapper``) that passes the env's tensors straight through: observations, actions,
 rewards and flags never leave the device (skrl's generic Gymnasium wrapper would convert them to numpy and back).
@@ -117,7 +117,7 @@ def best_ramp_success(env, seed: int) -> float:
     """best-ramp (the tuned blind ramp of the env's task) on the same objects: the target."""
     import torch
 
-    from agents.policies import make_policy
+    from agents.policies.registry import make_policy
 
     ramp = make_policy("best-ramp", env.unwrapped.config).policy
     device = env.unwrapped.device
@@ -146,8 +146,8 @@ def train(num_envs: int = 256, device: str = "cpu", minutes: float = 5.0, eval_o
     import pneunet_env  # noqa: F401
 
     set_seed(seed)
-    env = gym.make_vec("PneuNetGrasp-v0", num_envs=num_envs, backend="torch", device=device, compile=compile)
-    eval_env = gym.make_vec("PneuNetGrasp-v0", num_envs=eval_objects, backend="torch", device=device,
+    env = gym.make_vec("PneuNetGrasp-v1", num_envs=num_envs, backend="torch", device=device, compile=compile)
+    eval_env = gym.make_vec("PneuNetGrasp-v1", num_envs=eval_objects, backend="torch", device=device,
                             compile=compile)
     eval_seed = 10_000 + seed
     target = best_ramp_success(eval_env, eval_seed)
@@ -193,7 +193,7 @@ def train(num_envs: int = 256, device: str = "cpu", minutes: float = 5.0, eval_o
             if train_s >= budget:
                 break
         t = time.perf_counter()
-        with torch.enable_grad():  # whatever the caller's mode (see agents.train: a Ctrl-C can leave it off)
+        with torch.enable_grad():  # whatever the caller's mode (see agents.training.train: a Ctrl-C can leave it off)
             trainer.train()
         train_s += time.perf_counter() - t
         steps += num_envs

@@ -1,4 +1,4 @@
-"""Scripted, blind pressure schedules for ``PneuNetGrasp-v0``.
+"""Scripted, blind pressure schedules for ``PneuNetGrasp-v1``.
 
 Each policy maps the environment's observation (whose first entry is the normalised pressure
 ``p / p_max``) to an action in ``Box(-1, 1, (1,))``; the environment turns an action ``a`` into the
@@ -10,8 +10,8 @@ Targets are fractions of ``max_pressure_kpa`` (the observation's units); :meth:`
 The same policies drive the rigid gripper of :mod:`pneunet_env.envs.rigid`, whose observation is the jaw's
 indentation over its travel: there a target is a fraction of the travel.
 
-Every policy here also has ``begin_episode(info)``, called by :func:`agents.evaluate.run_episode` with
-the ``info`` of ``reset``: a blind policy ignores it (the oracle of :mod:`agents.oracle` reads the
+Every policy here also has ``begin_episode(info)``, called by :func:`agents.evaluation.episodes.run_episode` with
+the ``info`` of ``reset``: a blind policy ignores it (the oracle of :mod:`agents.policies.oracle` reads the
 object from it). :func:`load_ramp` reads a ramp saved as JSON by :mod:`agents.search`
 (``agents/best_ramp.json`` is the ``best-ramp`` policy). A saved schedule is defined in kPa (mm for the jaw): its
 fraction is only another way to write it, so changing ``max_pressure_kpa`` never moves it (:func:`ramp_target`).
@@ -204,7 +204,7 @@ def ramp_target(data: dict[str, Any], source: str, full_scale: float, unit: str 
     ``target``, is only another way to write it: of the scale the file records (``max_pressure_kpa``,
     ``jaw_travel_mm``), or, in a file that records neither the physical target nor that scale (:func:`save_ramp`'s
     form), of ``full_scale``. So a new maximum never moves a tuned schedule (``--set max_pressure_kpa=40`` keeps
-    ``agents/best_ramp.json``'s 33.9 kPa). A file's own target and fraction are returned bit for bit where the scales
+    ``agents/best_ramp.json``'s 35.1 kPa). A file's own target and fraction are returned bit for bit where the scales
     agree.
 
     Raises:
@@ -226,8 +226,8 @@ def ramp_target(data: dict[str, Any], source: str, full_scale: float, unit: str 
         raise ValueError(f"{source}: its two targets disagree: {key} = {physical:g} {unit}, but target = {fraction:g} "
                          f"of {scale_key} = {scale:g} is {fraction * scale:g} {unit}; give one of them (or make them "
                          "agree)")
-    if physical is None and (scale is None or scale == full_scale):
-        return fraction  # a fraction of this config's scale, as written
+    if fraction is not None and (scale is None and physical is None or scale == full_scale):
+        return fraction  # a fraction of this config's scale, as written (it agrees with the physical target)
     if physical is None:
         physical = fraction * scale
     if physical > full_scale * (1.0 + 1e-12):

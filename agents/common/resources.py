@@ -12,12 +12,14 @@ from __future__ import annotations
 import os
 from pathlib import Path
 
-AGENTS_DIR = Path(__file__).resolve().parent
+AGENTS_DIR = Path(__file__).resolve().parents[1]
+"""The package's root, ``agents/``: the shipped schedules (``best_ramp.json``, ...), ``models/`` and (in a wheel)
+``configs/`` lie there."""
 MODELS_DIR = AGENTS_DIR / "models"
 CONFIG_DIRS = (AGENTS_DIR / "configs", AGENTS_DIR.parent / "configs")
 """Where named configs are looked up: the wheel's copy, then a source checkout's ``configs/``."""
 
-__all__ = ["is_name", "config_names", "resolve_config", "model_names", "resolve_model", "MODELS_DIR"]
+__all__ = ["AGENTS_DIR", "is_name", "config_names", "resolve_config", "model_names", "resolve_model", "MODELS_DIR"]
 
 
 def is_name(value: str | os.PathLike) -> bool:

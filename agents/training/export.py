@@ -13,8 +13,8 @@ import re
 from pathlib import Path
 from typing import Any
 
-from agents.policies import STATS_SUFFIX, NormalizationStats, load_pickled_vecnormalize
-from agents.train_config import action_mode
+from agents.policies.sb3 import STATS_SUFFIX, NormalizationStats, load_pickled_vecnormalize
+from agents.training.config import action_mode
 from pneunet_env.files import atomic_write_many, deferred_interrupt
 
 __all__ = ["export", "export_source", "resume_stats"]

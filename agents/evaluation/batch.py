@@ -2,10 +2,10 @@
 
 Every pair (candidate, object) is one sub-env of :class:`pneunet_env.envs.grasp_vector.PneuNetGraspVectorEnv`,
 seeded with the object's episode seed, so sub-env ``c * M + m`` meets exactly the object that
-``gym.make("PneuNetGrasp-v0").reset(seed=seeds[m])`` draws (the vector env's streams are numpy's PCG64, bit for
+``gym.make("PneuNetGrasp-v1").reset(seed=seeds[m])`` draws (the vector env's streams are numpy's PCG64, bit for
 bit). The batch is stepped for one episode length; each sub-env's *first* episode is recorded (its outcome, its
 return) and what autoreset starts after it is ignored. The scores are therefore the single env's, object for
-object (``tests/agents/test_batch.py`` checks them against :func:`agents.evaluate.run_episode`).
+object (``tests/agents/test_batch.py`` checks them against :func:`agents.evaluation.episodes.run_episode`).
 
 * :func:`run_batch`: any stateless batch policy ``act(obs) -> actions`` on ``copies x M`` sub-envs.
 * :func:`ramp_grid`: linear ramps to every target of a grid, each on every object: a
@@ -32,7 +32,7 @@ __all__ = ["BatchOutcome", "RampGrid", "run_batch", "run_policy", "policy_episod
            "ramp_actions", "ramp_grid", "duration_invariance", "episode_seeds", "HELD_OUT_SEED"]
 
 HELD_OUT_SEED = 1_000_000_000
-"""Offset of held-out objects' seeds (``agents.evaluate.HELD_OUT_SEED``): disjoint from the search's."""
+"""Offset of held-out objects' seeds (``agents.evaluation.batch.HELD_OUT_SEED``): disjoint from the search's."""
 
 
 def episode_seeds(n: int, seed: int = 0, held_out: bool = False) -> np.ndarray:
@@ -81,7 +81,8 @@ class BatchOutcome:
         return [self.class_names[c] if c >= 0 else "ranges" for c in self.class_id]
 
     def episodes(self, copy: int = 0) -> list[dict[str, Any]]:
-        """Copy ``copy``'s episodes as :func:`agents.evaluate.run_episode` reports them, one dict per object."""
+        """Copy ``copy``'s episodes as :func:`agents.evaluation.episodes.run_episode` reports them, one dict per
+        object."""
         names = self.classes
         return [{"stiffness": float(self.stiffness[m]), "shear_modulus_kpa": float(self.shear_modulus_kpa[m]),
                  "curvature": float(self.curvature[m]), "object_class": names[m],
@@ -184,8 +185,8 @@ def run_batch(config: EnvConfig, seeds: Sequence[int], act: Callable[[np.ndarray
 
 
 def ramp_actions(targets: np.ndarray, n_steps: int | np.ndarray, config: EnvConfig) -> Callable:
-    """The batch policy of :class:`agents.scripted.LinearRamp` with a target (fraction of ``p_max``) per sub-env:
-    the same arithmetic, so the same actions bit for bit."""
+    """The batch policy of :class:`agents.policies.scripted.LinearRamp` with a target (fraction of ``p_max``) per
+    sub-env: the same arithmetic, so the same actions bit for bit."""
     targets = np.asarray(targets, dtype=np.float64)
     increment = targets / np.asarray(n_steps, dtype=np.float64)
     step_fraction = config.task.max_pressure_step_kpa / config.task.max_pressure_kpa
@@ -276,12 +277,13 @@ def duration_invariance(config: EnvConfig, seeds: Sequence[int], targets: Sequen
 
 
 def batchable(entry) -> bool:
-    """Whether a policy entry (:class:`agents.policies.PolicyEntry`) runs batched: a pneu-net policy that maps the
-    observation alone to the action (a ramp, a step, a trained model) or reads only the object at reset (the
+    """Whether a policy entry (:class:`agents.policies.registry.PolicyEntry`) runs batched: a pneu-net policy that maps
+    the observation alone to the action (a ramp, a step, a trained model) or reads only the object at reset (the
     oracle). The rigid jaw has no vector env: it runs episode by episode."""
-    from agents.oracle import Oracle
-    from agents.policies import PNEUNET_ENV, SB3Policy
-    from agents.scripted import LinearRamp, StepPolicy
+    from agents.common.envs import PNEUNET_ENV
+    from agents.policies.oracle import Oracle
+    from agents.policies.sb3 import SB3Policy
+    from agents.policies.scripted import LinearRamp, StepPolicy
 
     return entry.env_id == PNEUNET_ENV and isinstance(entry.policy, (LinearRamp, StepPolicy, Oracle, SB3Policy))
 
@@ -291,7 +293,7 @@ def run_policy(entry, config: EnvConfig, seeds: Sequence[int], backend: str = "a
     """One episode of ``entry``'s policy per object of ``seeds``, batched (:func:`batchable` entries only); the
     env is the entry's (its ``env_kwargs``, e.g. a model's ``observe_volume``, on top of ``config``); ``options``:
     :func:`run_batch`'s object pins."""
-    from agents.oracle import Oracle
+    from agents.policies.oracle import Oracle
 
     if not batchable(entry):
         raise ValueError(f"policy {entry.name!r} does not run batched (the rigid jaw has no vector env)")
@@ -317,8 +319,8 @@ def run_policy(entry, config: EnvConfig, seeds: Sequence[int], backend: str = "a
 
 def policy_episodes(entry, config: EnvConfig, seeds: Sequence[int], options: dict[str, Any] | None = None,
                     bar=None) -> list[dict[str, Any]]:
-    """One episode of ``entry``'s policy per seed, as :func:`agents.evaluate.run_episode` reports them: batched
-    where the policy allows (:func:`batchable`), else episode by episode on ``entry.make_env(config)``; the same
+    """One episode of ``entry``'s policy per seed, as :func:`agents.evaluation.episodes.run_episode` reports them:
+    batched where the policy allows (:func:`batchable`), else episode by episode on ``entry.make_env(config)``; the same
     episodes either way. ``options``: the reset's pins, a value per seed (``(M,)``) or one for all; ``bar``: a
     progress bar, advanced by one per episode."""
     if batchable(entry):
@@ -326,7 +328,7 @@ def policy_episodes(entry, config: EnvConfig, seeds: Sequence[int], options: dic
         if bar is not None:
             bar.update(len(out))
         return out
-    from agents.evaluate import run_episode
+    from agents.evaluation.episodes import run_episode
 
     env = entry.make_env(config)
     out = []

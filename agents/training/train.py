@@ -1,7 +1,7 @@
-"""``pneunet-grasp train --config configs/train/ppo.yaml``: train a stable-baselines3 agent on ``PneuNetGrasp-v0``.
+"""``pneunet-grasp train --config configs/train/ppo.yaml``: train a stable-baselines3 agent on ``PneuNetGrasp-v1``.
 
 The config is two files, ``ppo.yaml`` (a plain rl-zoo3 hyperparameter file: ``python -m rl_zoo3.train`` trains
-from it as it is) and ``ppo.project.yaml`` beside it (this command's own keys): :mod:`agents.train_config` reads them
+from it as it is) and ``ppo.project.yaml`` beside it (this command's own keys): :mod:`agents.training.config` reads them
 and documents every key, and what a train config may run (only classes of SB3, sb3-contrib, Gymnasium and this
 package; a train config is data, not code).
 
@@ -14,7 +14,7 @@ statistics as numbers) and ``.pkl`` (SB3's pickle), ``checkpoints/``, ``final_mo
 with matplotlib). ``--resume`` continues from the newest readable checkpoint (one cut short by a hard kill under
 an older version is skipped, and said so on stderr; or ``--resume PATH.zip``) up to ``n_timesteps``, with the
 statistics beside it as numbers (``model_vecnormalize_<N>_steps.json``); a pickle is loaded only when named
-(``--resume-vecnormalize PATH.pkl``) or the run's own, in ``--run-dir`` (:func:`agents.train_export.resume_stats`).
+(``--resume-vecnormalize PATH.pkl``) or the run's own, in ``--run-dir`` (:func:`agents.training.export.resume_stats`).
 
 Nothing is lost (:func:`train`): every file of the run is written to a temporary name in its folder and renamed
 (the monitor CSVs, logs, excepted); ``run.json`` gives the run's ``state`` (``running``, ``finished``, ``stopped``
@@ -30,8 +30,8 @@ leaves the previous export whole): the policy registry (:mod:`agents.policies`) 
 ``agents/models/ppo_pneunet.zip`` by path.
 
 The command's parts: this module holds the training loop, the saved models and the run's record
-(``run.json``) and the command line; :mod:`agents.train_config` the config; :mod:`agents.train_envs` the vec envs
-and callbacks; :mod:`agents.train_export` ``--export``; :mod:`agents.plotting` ``training.png``. Their public
+(``run.json``) and the command line; :mod:`agents.training.config` the config; :mod:`agents.training.envs` the vec envs
+and callbacks; :mod:`agents.training.export` ``--export``; :mod:`agents.figures` ``training.png``. Their public
 names are importable from here too.
 
 torch and stable-baselines3 are imported only inside the functions (``pip install -e ".[rl]"``).
@@ -50,48 +50,22 @@ import time
 from pathlib import Path
 from typing import Any
 
-from agents.plotting import plot_training
-from agents.policies import (
-    STATS_SUFFIX,
-    NormalizationStats,
+from agents.figures.training import plot_training
+from agents.policies.sb3 import STATS_SUFFIX, NormalizationStats, check_model_zip
+from agents.training.config import ENV_ID, PROJECT_KEYS, _algo_kwargs, _resolve_policy_kwargs, action_mode
+from agents.training.envs import make_callbacks, make_vec_env, reference_success
+from agents.training.export import resume_stats
+from pneunet_env.files import (
     atomic_write_bytes,
-    check_model_zip,
+    atomic_write_json,
+    atomic_write_many,
+    atomic_write_text,
+    deferred_interrupt,
 )
-from agents.train_config import (  # noqa: F401  (re-exported: the config's names, as before the move)
-    ALGOS,
-    DEFAULTS,
-    ENV_ID,
-    PROJECT_KEYS,
-    SETPOINT_WRAPPER,
-    ZOO_KEYS,
-    LinearSchedule,
-    _algo_kwargs,
-    _class_specs,
-    _count,
-    _import_class,
-    _resolve_policy_kwargs,
-    _wrapper_classes,
-    action_mode,
-    load_train_config,
-    parse_literal,
-    project_config_path,
-)
-from agents.train_envs import batched_available, make_callbacks, make_vec_env, reference_success
-from agents.train_export import export, export_source, resume_stats
-from pneunet_env.arguments import count, integer, output_dir, output_file, real
-from pneunet_env.arguments import seed as seed_type
-from pneunet_env.files import atomic_write_json, atomic_write_many, atomic_write_text, deferred_interrupt
 from pneunet_env.locks import RunLock
 from pneunet_env.yamlio import dump_yaml, load_json_file
 
-__all__ = ["load_train_config", "project_config_path", "parse_literal", "train", "add_arguments", "run",
-           "make_vec_env", "export", "export_source", "action_mode", "LinearSchedule", "batched_available",
-           "latest_checkpoint", "write_record", "reference_success", "plot_training"]
-
-
-# ---------------------------------------------------------------------------------------------
-# Saving models (each file whole or not at all)
-# ---------------------------------------------------------------------------------------------
+__all__ = ["no_folder_logger", "latest_checkpoint", "train", "write_record"]
 
 
 def _model_bytes(model) -> bytes:
@@ -152,15 +126,10 @@ def _save_checkpoint(model, folder: Path) -> Path:
 
 
 def _callbacks(hp, run_dir: Path, eval_env, seed: int, deadline: float, resuming: bool = False) -> list:
-    """The run's callbacks (:func:`agents.train_envs.make_callbacks`), saving models through this module's
+    """The run's callbacks (:func:`agents.training.envs.make_callbacks`), saving models through this module's
     :func:`_save_model` and :func:`_save_checkpoint`."""
     return make_callbacks(hp, run_dir, eval_env, seed, deadline, resuming, save_model=_save_model,
                           save_checkpoint=_save_checkpoint)
-
-
-# ---------------------------------------------------------------------------------------------
-# Training and the run's record
-# ---------------------------------------------------------------------------------------------
 
 
 _CKPT = re.compile(r"model_(\d+)_steps\.zip$")
@@ -222,7 +191,7 @@ def train(hp: dict[str, Any], run_dir: Path, resume: Path | None = None, progres
             unreadable one is a ``ValueError`` naming it (restore it, or move it aside to start a new record).
         resume_vecnormalize: the statistics to resume a normalised run with (``--resume-vecnormalize``: a ``.json``,
             or a pickle, loaded because it is named); default: those beside ``resume``, never an unnamed pickle
-            outside ``run_dir`` (:func:`agents.train_export.resume_stats`).
+            outside ``run_dir`` (:func:`agents.training.export.resume_stats`).
         command: the command line, recorded in ``run.json`` and the lock file.
         force: take over the run folder's lock even if its holder looks alive.
     """
@@ -418,55 +387,6 @@ def write_record(path: Path, record: dict[str, Any]) -> None:
         atomic_write_json(path, record, default=str)
 
 
-# ---------------------------------------------------------------------------------------------
-# Command line
-# ---------------------------------------------------------------------------------------------
-
-
-def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--config", required=True,
-                        help="rl-zoo3 hyperparameter YAML (configs/train/ppo.yaml), or a shipped config's name (ppo, "
-                             "sac); this command's own keys are read from NAME.project.yaml beside it")
-    parser.add_argument("--run-dir", type=output_dir, default=None, help="output directory (default runs/<algo>)")
-    parser.add_argument("--resume", nargs="?", const="latest", default=None, metavar="CHECKPOINT",
-                        help="resume from CHECKPOINT.zip, or (no value) from the newest checkpoint of --run-dir")
-    parser.add_argument("--resume-vecnormalize", type=Path, default=None, metavar="PATH",
-                        help="with --resume: the normalisation statistics to go on with (.json, or a .pkl: a pickle "
-                             "runs code, and is loaded only when named here); default: the JSON beside the checkpoint")
-    parser.add_argument("--timesteps", type=real(1, 1e12), default=None, help="override n_timesteps")
-    parser.add_argument("--n-envs", type=integer(1, 65536, "--n-envs"), default=None, help="override n_envs")
-    parser.add_argument("--seed", type=seed_type, default=None, help="override seed")
-    parser.add_argument("--eval-freq", type=real(1, 1e12), default=None, help="override eval_freq (timesteps)")
-    parser.add_argument("--n-eval-episodes", type=integer(1, 1_000_000, "--n-eval-episodes"), default=None,
-                        help="override n_eval_episodes")
-    parser.add_argument("--checkpoint-freq", type=real(1, 1e12), default=None,
-                        help="override checkpoint_freq (timesteps)")
-    parser.add_argument("--max-minutes", type=real(0, 1e7, above=True), default=None, help="override max_train_minutes")
-    parser.add_argument("--vec-env", choices=("batched", "dummy"), default=None, help="override vec_env")
-    parser.add_argument("--threads", type=integer(1, 1024, "--threads"), default=None,
-                        help="torch threads (override torch_threads; default 1: the batched env's numba threads run "
-                             "beside it)")
-    parser.add_argument("--seeds", type=integer(1, 1000, "--seeds"), default=None, metavar="N",
-                        help="train N seeds (seed, seed+1, ...) in RUN_DIR/seed-K, then score each on held-out objects "
-                             "with its untrained start and best-ramp: seeds.json, learning_curves.png; --export then "
-                             "exports the median seed's model (agents.seeds)")
-    parser.add_argument("--jobs", type=integer(1, 1024, "--jobs"), default=1,
-                        help="with --seeds: seeds trained at once, one process each")
-    parser.add_argument("--objects", type=count, default=400,
-                        help="with --seeds: held-out objects each seed's model is scored on (default 400, demo's)")
-    parser.add_argument("--export", type=output_file, default=None, metavar="PATH_STEM",
-                        help="copy the best model to PATH_STEM.zip (+ _vecnormalize.json, .json), "
-                             "e.g. agents/models/ppo_pneunet")
-    parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
-                        help="set an environment config key in env_kwargs (repeatable; VALUE is YAML), e.g. "
-                             "--set observe_volume=true")
-    parser.add_argument("--no-progress", action="store_true", help="no progress bar")
-    parser.add_argument("--force", action="store_true",
-                        help="take over the run folder's lock even if the process holding it looks alive (or ran on "
-                             "another host): only when you know it is gone (a lock of a dead process on this host is "
-                             "taken over without it)")
-
-
 def _command(args: argparse.Namespace, run_dir: Path) -> str:
     """The command line of this invocation (recorded in run.json and the exported model's JSON)."""
     parts = ["pneunet-grasp train", f"--config {getattr(args, 'config_given', args.config)}", f"--run-dir {run_dir}"]
@@ -482,64 +402,3 @@ def _command(args: argparse.Namespace, run_dir: Path) -> str:
     if getattr(args, "resume_vecnormalize", None) is not None:
         parts.append(f"--resume-vecnormalize {args.resume_vecnormalize}")
     return " ".join(parts)
-
-
-def run(args: argparse.Namespace) -> int:
-    from pneunet_env.extras import require_extra
-
-    for module in ("torch", "stable_baselines3"):  # one line naming the extra, before the config is read
-        require_extra("train", module, "rl", "training (stable-baselines3 on torch)")
-    try:
-        from agents.resources import resolve_config
-
-        args.config_given = getattr(args, "config_given", args.config)  # as typed: the run's record shows it
-        args.config = str(resolve_config(args.config, "train"))
-        hp = load_train_config(args.config)
-        for key, value in (("n_timesteps", args.timesteps), ("n_envs", args.n_envs), ("seed", args.seed),
-                           ("eval_freq", args.eval_freq), ("n_eval_episodes", args.n_eval_episodes),
-                           ("checkpoint_freq", args.checkpoint_freq)):
-            if value is not None:
-                hp[key] = _count(key, value) if key != "seed" else int(value)
-        if args.max_minutes is not None:
-            if not args.max_minutes > 0:
-                raise ValueError(f"--max-minutes must be > 0, got {args.max_minutes}")
-            hp["max_train_minutes"] = float(args.max_minutes)
-        if args.vec_env is not None:
-            hp["vec_env"] = args.vec_env
-        if args.threads is not None:
-            hp["torch_threads"] = _count("--threads", args.threads)
-        if args.overrides:
-            from agents.evaluate import parse_overrides
-            from pneunet_env.config import load_config
-
-            env_kwargs = {**(hp.get("env_kwargs") or {}), **parse_overrides(args.overrides)}
-            load_config(None, **env_kwargs)  # a bad key or value is named here, before training starts
-            hp["env_kwargs"] = env_kwargs
-    except ValueError as exc:
-        raise SystemExit(f"pneunet-grasp train: {exc}") from None
-    run_dir = args.run_dir or Path("runs") / hp["algo"]
-    if (named := getattr(args, "resume_vecnormalize", None)) is not None and args.resume is None:
-        raise SystemExit(f"pneunet-grasp train: --resume-vecnormalize {named} needs --resume")
-    if args.seeds is not None:
-        from agents.seeds import run_seeds
-
-        return run_seeds(args, hp, run_dir)
-    resume = None
-    if args.resume is not None:
-        resume = latest_checkpoint(run_dir) if args.resume == "latest" else Path(args.resume)
-        if resume is None or not resume.is_file():
-            raise SystemExit(f"pneunet-grasp train: no checkpoint to resume from ({args.resume} in {run_dir})")
-    if named is not None and not named.is_file():
-        raise SystemExit(f"pneunet-grasp train: --resume-vecnormalize {named}: no such file")
-    print(f"training {hp['algo'].upper()} on {ENV_ID} ({hp['vec_env']} vec env, {hp['n_envs']} envs) for "
-          f"{hp['n_timesteps']} timesteps, at most {hp['max_train_minutes']:g} min; seed {hp['seed']}; -> {run_dir}"
-          + (f"; resuming from {resume}" if resume else ""))
-    record = train(hp, run_dir, resume, progress=not args.no_progress, config_path=str(args.config),
-                   command=_command(args, run_dir), force=getattr(args, "force", False), resume_vecnormalize=named)
-    inv = record["invocations"][-1]
-    print(f"{inv['end_timesteps']} timesteps ({inv['end_timesteps'] - inv['start_timesteps']} this run) in "
-          f"{inv['wall_s']:.0f} s; best evaluation: {record['best_eval']}")
-    if args.export is not None:
-        path = export(run_dir, args.export, record)
-        print(f"exported {export_source(run_dir)} to {path}")
-    return 0

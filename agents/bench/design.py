@@ -4,9 +4,9 @@
   pressures, then the same schedule on the 8 perturbed actuators), after compilation: the median of
   ``--repeats`` runs, with its env-steps per second beside ``gym.make_vec("CartPole-v1", num_envs=N)``'s
   (``CartPoleVectorEnv``) at the same N, stepped with random actions in the same run.
-* **The best-ramp search on the default task**: ``pneunet-grasp search``'s batched path (:mod:`agents.batch`) and
-  the single-env episode loop it replaced, both timed here, both on the old eight durations (the same work) and
-  each as its command runs it (the batched search on :data:`agents.search.DURATIONS`).
+* **The best-ramp search on the default task**: ``pneunet-grasp search``'s batched path (:mod:`agents.evaluation.batch`)
+  and the single-env episode loop it replaced, both timed here, both on the old eight durations (the same work) and
+  each as its command runs it (the batched search on :data:`agents.search.ramp.DURATIONS`).
 
 Figures, never a pass/fail: machines are noisy. ``--json PATH`` keeps them.
 """
@@ -44,8 +44,8 @@ def _cartpole_rate(n: int, steps: int = 100, seed: int = 0) -> float:
 
 def bench_evaluation(objects: int = 200, repeats: int = 3) -> dict[str, Any]:
     """One design evaluation's wall time (Table 1's actuator), after a warm-up that compiles."""
-    from agents.batch import episode_seeds
     from agents.design import N_ERRORS, TARGETS, evaluate_design, reference_regimes, table1_design
+    from agents.evaluation.batch import episode_seeds
 
     seeds = episode_seeds(objects)
     ref = reference_regimes(seeds)
@@ -66,7 +66,7 @@ def bench_evaluation(objects: int = 200, repeats: int = 3) -> dict[str, Any]:
 
 def bench_search(objects: int = 200, old: bool = True) -> dict[str, Any]:
     """The default task's best-ramp search: batched and episodic, timed in this run."""
-    from agents.search import ALL_DURATIONS, DURATIONS, search_ramp
+    from agents.search.ramp import ALL_DURATIONS, DURATIONS, search_ramp
     from pneunet_env.config import EnvConfig
 
     cfg = EnvConfig()

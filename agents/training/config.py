@@ -1,8 +1,8 @@
-"""The train config of ``pneunet-grasp train`` (:mod:`agents.train`): an rl-zoo3 file and its project file.
+"""The train config of ``pneunet-grasp train`` (:mod:`agents.training.train`): an rl-zoo3 file and its project file.
 
 The config is two files. ``ppo.yaml`` is a plain rl-zoo3 hyperparameter file, so rl-zoo3 trains from it as it is::
 
-    python -m rl_zoo3.train --algo ppo --env PneuNetGrasp-v0 --gym-packages pneunet_env \
+    python -m rl_zoo3.train --algo ppo --env PneuNetGrasp-v1 --gym-packages pneunet_env \
         --conf-file configs/train/ppo.yaml
 
 It maps the env id to rl-zoo3's keys (``policy``, ``n_envs``, ``n_timesteps``, ``normalize``, ``policy_kwargs``,
@@ -78,7 +78,7 @@ __all__ = ["load_train_config", "project_config_path", "parse_literal", "action_
            "ENV_ID", "ALGOS", "PROJECT_KEYS", "ZOO_KEYS", "DEFAULTS", "SETPOINT_WRAPPER", "CALLABLE_PACKAGES",
            "CALLABLE_BASES", "PATCHING_MODULES"]
 
-ENV_ID = "PneuNetGrasp-v0"
+ENV_ID = "PneuNetGrasp-v1"
 ALGOS = ("ppo", "sac", "td3", "a2c")
 PROJECT_KEYS = ("algo", "vec_env", "seed", "eval_freq", "n_eval_episodes", "n_eval_envs", "checkpoint_freq",
                 "max_train_minutes", "torch_threads")
@@ -256,7 +256,7 @@ def _wrapper_classes(hp: dict[str, Any], key: str) -> list[tuple[Any, dict[str, 
 
 def action_mode(hp: dict[str, Any]) -> str:
     """``"setpoint"`` if the config drives the env through :mod:`pneunet_env.wrappers`' setpoint wrapper, else
-    ``"rate"`` (the env's own action): what :class:`agents.policies.SB3Policy` must apply to the model's output."""
+    ``"rate"`` (the env's own action): what :class:`agents.policies.sb3.SB3Policy` must apply to the model's output."""
     names = [n for key in ("env_wrapper", "vec_env_wrapper") for n, _ in _class_specs(key, hp.get(key))]
     return "setpoint" if any(n in (SETPOINT_WRAPPER, SETPOINT_WRAPPER + "VecEnv") for n in names) else "rate"
 

@@ -5,8 +5,8 @@ is a pressure setpoint), and two seeds of the same config can land far apart. So
 seeds, next to its own untrained start:
 
 1. **Training.** Seed ``s`` (``seed``, ``seed + 1``, ...) trains in ``RUN_DIR/seed-<s>`` as a plain
-   ``pneunet-grasp train`` run (:func:`agents.train.train`), evaluated at step 0 (the untrained policy, also saved
-   as ``initial_model.zip``) and every ``eval_freq`` steps. A seed whose ``run.json`` reached ``n_timesteps`` is
+   ``pneunet-grasp train`` run (:func:`agents.training.train.train`), evaluated at step 0 (the untrained policy, also
+   saved as ``initial_model.zip``) and every ``eval_freq`` steps. A seed whose ``run.json`` reached ``n_timesteps`` is
    done and kept; any other resumes from its newest checkpoint: running the same command again resumes an
    interrupted study, and a larger ``--timesteps`` extends a finished one. ``--jobs J`` trains ``J`` seeds at
    once, one process each.
@@ -21,11 +21,11 @@ seeds, next to its own untrained start:
 
 Nothing is lost: the study folder is locked while the study runs (:class:`pneunet_env.locks.RunLock`; a second
 study on it is refused by name, ``--force`` takes the lock over), and so is each seed's folder while it trains
-(:func:`agents.train.train`). Every file is written whole or not at all. Ctrl-C stops the seeds that are training
-(each saves its model as a checkpoint and records ``state: interrupted``), starts no other, and propagates; the
+(:func:`agents.training.train.train`). Every file is written whole or not at all. Ctrl-C stops the seeds that are
+training (each saves its model as a checkpoint and records ``state: interrupted``), starts no other, and propagates; the
 same command resumes.
 
-With ``--jobs``, each seed trains in a worker process watched by the parent (:func:`agents.workers.run_jobs`). A
+With ``--jobs``, each seed trains in a worker process watched by the parent (:func:`agents.common.workers.run_jobs`). A
 worker that dies (the OOM killer's or a pre-emption's SIGKILL) is noticed at once: its seed's ``run.json`` says
 ``state: failed`` with the cause and the exit signal, its lock and the temporary files its cut writes left are
 removed (:func:`_mark_died`), no other seed starts, and the seeds training are stopped as Ctrl-C stops them (their
@@ -45,7 +45,7 @@ from typing import Any
 
 import numpy as np
 
-from agents.plotting import plot_seeds  # the figure (re-exported: it lived here)
+from agents.figures.training import plot_seeds  # the figure (re-exported: it lived here)
 from pneunet_env.files import atomic_write_json, deferred_interrupt
 from pneunet_env.yamlio import load_json_file
 
@@ -63,7 +63,7 @@ def train_seed(hp: dict[str, Any], run_dir: Path, progress: bool, config_path: s
     A seed whose ``run.json`` reached ``hp["n_timesteps"]`` (and is not marked running, interrupted or failed) is
     done: its record is returned as it is. One that stopped short (interrupted, or a study extended by a larger
     ``--timesteps``) resumes from its newest checkpoint. ``force``: take over the seed folder's lock."""
-    from agents.train import latest_checkpoint, train
+    from agents.training.train import latest_checkpoint, train
 
     if _done(run_dir, hp):
         return _record(run_dir)
@@ -113,19 +113,19 @@ def _done(run_dir: Path, hp: dict[str, Any]) -> bool:
         return False
 
 
-def _train_job(job: tuple) -> dict[str, Any]:  # a worker process (agents.workers): module-level, so that it pickles
+def _train_job(job: tuple) -> dict[str, Any]:  # a worker process (agents.common.workers): module-level, to pickle
     return train_seed(*job)
 
 
 def _mark_died(run_dir: Path, seed: int, out) -> bool:
-    """Seed ``seed``'s worker died (``out``: its :class:`agents.workers.Outcome`): its lock is released, the temporary
-    files its cut writes left are removed, and its ``run.json`` says ``state: failed``, with the cause, the exit
-    signal and the timesteps a resume starts from (its newest readable checkpoint's). Returns whether its run had
+    """Seed ``seed``'s worker died (``out``: its :class:`agents.common.workers.Outcome`): its lock is released, the
+    temporary files its cut writes left are removed, and its ``run.json`` says ``state: failed``, with the cause, the
+    exit signal and the timesteps a resume starts from (its newest readable checkpoint's). Returns whether its run had
     finished before it died (then its record is kept as it is). A worker that died before it made its folder
     leaves nothing to record."""
     import time
 
-    from agents.train import _CKPT, latest_checkpoint, write_record
+    from agents.training.train import _CKPT, latest_checkpoint, write_record
     from pneunet_env.files import remove_temporary
     from pneunet_env.locks import RunLock, release_dead
 
@@ -158,14 +158,14 @@ def _seed_list(seeds: list[int]) -> str:
 
 def _train_in_workers(todo: list[int], jobs_of: dict[int, tuple], jobs: int, dirs: dict[int, Path],
                       n_timesteps: int) -> dict[int, dict[str, Any]]:
-    """Train the seeds ``todo`` in ``jobs`` worker processes (:func:`agents.workers.run_jobs`); their records.
+    """Train the seeds ``todo`` in ``jobs`` worker processes (:func:`agents.common.workers.run_jobs`); their records.
 
     A worker that dies is noticed at once: its seed's run is marked failed (:func:`_mark_died`), no other seed
     starts, and the seeds training are stopped as Ctrl-C stops them (each saves its model as a checkpoint), so that
     the whole study resumes from where it stood with the same command. Raises ``SystemExit`` with one line naming
     each seed's end and how to resume, or ``KeyboardInterrupt`` (its note says the same) after a Ctrl-C."""
-    from agents.train import latest_checkpoint
-    from agents.workers import run_jobs
+    from agents.common.workers import run_jobs
+    from agents.training.train import latest_checkpoint
 
     def on_end(out) -> bool:
         s = todo[out.index]
@@ -177,7 +177,8 @@ def _train_in_workers(todo: list[int], jobs_of: dict[int, tuple], jobs: int, dir
         return False
 
     ran = run_jobs(_train_job, [jobs_of[s] for s in todo], min(jobs, len(todo)), on_end=on_end,
-                   preload=("agents.seeds", "agents.train", "stable_baselines3", "torch", "matplotlib"))
+                   preload=("agents.training.seeds", "agents.training.train", "stable_baselines3", "torch",
+                            "matplotlib"))
     records = {todo[o.index]: o.value for o in ran.by_state("done")}
     for o in ran.by_state("died"):
         if (record := _record(dirs[todo[o.index]])) is not None and record.get("state") in ("finished", "stopped"):
@@ -239,10 +240,10 @@ def _rates(success: np.ndarray, regime: np.ndarray) -> dict[str, float | None]:
 
 def score_seeds(hp: dict[str, Any], seed_dirs: dict[int, Path], objects: int) -> dict[str, Any]:
     """Each seed's best model and untrained start, and best-ramp, on ``objects`` held-out objects (batched:
-    :func:`agents.batch.run_policy`); success by regime."""
-    from agents.batch import episode_seeds, run_policy
-    from agents.evaluate import object_regimes
-    from agents.policies import make_policy
+    :func:`agents.evaluation.batch.run_policy`); success by regime."""
+    from agents.common.regimes import object_regimes
+    from agents.evaluation.batch import episode_seeds, run_policy
+    from agents.policies.registry import make_policy
     from pneunet_env.config import load_config
     from pneunet_env.physics.regimes import REGIMES
 
@@ -294,7 +295,7 @@ def median_seed(scores: dict[str, Any]) -> int:
 
 
 def _command(args: argparse.Namespace, run_dir: Path, seed: int) -> str:
-    from agents.train import _command as one
+    from agents.training.train import _command as one
 
     single = argparse.Namespace(**{**vars(args), "seed": seed, "export": None, "resume": None})
     return one(single, run_dir)
@@ -321,7 +322,7 @@ def run_seeds(args: argparse.Namespace, hp: dict[str, Any], run_dir: Path) -> in
 
 
 def _run_seeds(args: argparse.Namespace, hp: dict[str, Any], run_dir: Path, force: bool) -> int:
-    from agents.train import export
+    from agents.training.export import export
 
     n, jobs, objects = args.seeds, args.jobs, args.objects
     first = hp["seed"]

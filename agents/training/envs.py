@@ -1,7 +1,8 @@
-"""The environments and callbacks of a training run (:mod:`agents.train`): the training and evaluation ``VecEnv``
-(:func:`make_vec_env`: the batched env, :mod:`pneunet_env.envs.sb3`, or SB3's ``DummyVecEnv`` over ``gym.make``, with
-the config's wrappers), the callbacks (:func:`make_callbacks`: the seeded evaluation, atomic checkpoints, the time
-budget, the config's own) and best-ramp's success on the same evaluation objects (:func:`reference_success`).
+"""The environments and callbacks of a training run (:mod:`agents.training.train`): the training and evaluation
+``VecEnv`` (:func:`make_vec_env`: the batched env, :mod:`pneunet_env.envs.sb3`, or SB3's ``DummyVecEnv`` over
+``gym.make``, with the config's wrappers), the callbacks (:func:`make_callbacks`: the seeded evaluation, atomic
+checkpoints, the time budget, the config's own) and best-ramp's success on the same evaluation objects
+(:func:`reference_success`).
 
 stable-baselines3 is imported inside the functions (extra ``rl``).
 """
@@ -16,7 +17,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from agents.train_config import ENV_ID, _wrapper_classes
+from agents.training.config import ENV_ID, _wrapper_classes
 from pneunet_env.files import atomic_write_bytes, deferred_interrupt
 
 __all__ = ["batched_available", "make_vec_env", "make_callbacks", "evaluation_verdict", "reference_success"]
@@ -273,7 +274,7 @@ def reference_success(hp: dict[str, Any], seed: int, spec: str = "best-ramp") ->
     import numpy as np
     from stable_baselines3.common.evaluation import evaluate_policy
 
-    from agents.policies import make_policy
+    from agents.policies.registry import make_policy
     from pneunet_env.config import load_config
 
     try:

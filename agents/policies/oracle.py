@@ -111,21 +111,31 @@ def plan_target(
 
 
 def feasible_stiffness(config: EnvConfig, density_kg_m3: float | None = None) -> float:
-    """The smallest ``k~`` at which some state both holds the object and spares it: ``F~_grip / (crush_fraction H/w)``.
+    """The smallest ``k~`` at which some state both holds an object of the config's ranges and spares it: the grip
+    traction over the crush indentation, ``F~_grip / delta~_c``, of the env's own thresholds (both hold rules, both
+    damage rules), at the corner of the ranges where it is smallest.
 
-    ``F~_grip = rho g H / (grip_faces mu_f mu)`` and the crush depth is ``crush_fraction H``, so ``H`` cancels:
-    ``k~ = rho g w / (grip_faces mu_f crush_fraction mu)``, set by the density alone. With a density range, the
-    lightest objects (``density_kg_m3`` default: the range's low end) are the easiest to hold, so below this ``k~``
-    no object of the config can be held intact. (The failure-stress rule never binds first at the paper's
-    size: ``k_obj H = 0.0076 sigma_f``; it is not part of this bound.)
+    Under the paper's rules (``hold_rule: slab``, ``damage_rule: crush_fraction``) ``F~_grip = rho g H / (grip_faces
+    mu_f mu)`` and ``delta~_c = crush_fraction H/w``, so ``H`` cancels: ``k~ = rho g w / (grip_faces mu_f
+    crush_fraction mu)``, set by the density alone. The lightest objects (``density_kg_m3`` default: the range's low
+    end) are the easiest to hold, so below this ``k~`` no object of the config can be held intact. (The
+    failure-stress rule is not part of this bound: at the paper's size ``k_obj H = 0.0076 sigma_f``.)
     """
-    from pneunet_env.task import TaskParams
+    from pneunet_env.task import TaskParams, object_thresholds, sample_object
 
-    rho = config.objects.object_density_kg_m3[0] if density_kg_m3 is None else float(density_kg_m3)
-    tp = TaskParams.from_config(config)
-    # the grip traction per mm of thickness, rho g (1 mm) in kPa, over the faces and the friction, in units of mu
-    grip = rho * tp.gravity_m_s2 * 1e-6 / (tp.grip_faces * tp.friction_coefficient) / tp.shear_modulus_kpa
-    return float(grip * tp.width_mm / tp.crush_fraction)
+    oc = config.objects
+    rho = oc.object_density_kg_m3[0] if density_kg_m3 is None else float(density_kg_m3)
+    params = TaskParams.from_config(config)
+    best = np.inf
+    for thickness in oc.object_thickness_mm:
+        for curvature in oc.object_curvature_per_m:
+            pins = {"object_shear_modulus_kpa": 1.0, "object_thickness_mm": thickness, "object_curvature_per_m":
+                    curvature, "object_density_kg_m3": rho, "object_failure_strain": oc.object_failure_strain[1]}
+            obj = sample_object(np.random.default_rng(0), config.replace(use_case=None, class_weights=None), None,
+                                pins)
+            thr = object_thresholds(obj, params)
+            best = min(best, float(thr.grip_traction / thr.crush_indentation))
+    return best
 
 
 class Oracle:
@@ -136,7 +146,7 @@ class Oracle:
         resolution_kpa: the pressure grid the choice is made on (``None``: ``max_pressure_kpa / 120``).
 
     Call :meth:`begin_episode` with ``reset``'s ``info`` before the episode's first action
-    (:func:`agents.evaluate.run_episode` does). ``plan`` holds the last choice.
+    (:func:`agents.evaluation.episodes.run_episode` does). ``plan`` holds the last choice.
     """
 
     blind = False

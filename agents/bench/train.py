@@ -24,7 +24,7 @@ from pneunet_env.files import atomic_write_json
 
 
 def _rate(model, steps: int) -> tuple[float, float]:
-    from agents.train import no_folder_logger
+    from agents.training.train import no_folder_logger
 
     model.set_logger(no_folder_logger())  # no empty SB3-<date> folder per learn()
     model.learn(total_timesteps=model.n_steps * model.n_envs)  # warm-up: the first rollout compiles and allocates
@@ -35,14 +35,15 @@ def _rate(model, steps: int) -> tuple[float, float]:
 
 
 def bench_train(steps: int = 20_000, threads: tuple[int, ...] = (1, 2), seed: int = 0) -> dict[str, Any]:
-    """Timesteps per second of PPO on ``PneuNetGrasp-v0`` (the shipped config) per torch thread count, and of the
+    """Timesteps per second of PPO on ``PneuNetGrasp-v1`` (the shipped config) per torch thread count, and of the
     same PPO on CartPole-v1 (one thread)."""
     import stable_baselines3 as sb3
     import torch
     from stable_baselines3.common.env_util import make_vec_env as sb3_make_vec_env
 
-    from agents.resources import resolve_config
-    from agents.train import _algo_kwargs, _resolve_policy_kwargs, load_train_config, make_vec_env
+    from agents.common.resources import resolve_config
+    from agents.training.config import _algo_kwargs, _resolve_policy_kwargs, load_train_config
+    from agents.training.envs import make_vec_env
 
     hp = load_train_config(resolve_config("ppo", "train"))
     kwargs = _algo_kwargs(hp)
@@ -95,7 +96,7 @@ def run(args: argparse.Namespace) -> int:
     print(f"PPO training speed, {res['steps']} timesteps each ({res['n_envs']} envs x {res['n_steps']} steps a "
           "rollout), after one warm-up rollout:")
     for n, r in res["pneunet"].items():
-        print(f"  PneuNetGrasp-v0, shipped ppo config, {n} torch thread(s): {r['steps_per_s']:8.0f} steps/s "
+        print(f"  PneuNetGrasp-v1, shipped ppo config, {n} torch thread(s): {r['steps_per_s']:8.0f} steps/s "
               f"({r['wall_s']:.1f} s), {r['ratio_to_cartpole']:.2f}x CartPole's")
     cp = res["cartpole"]
     print(f"  CartPole-v1, the same PPO (no gSDE), 1 torch thread:       {cp['steps_per_s']:8.0f} steps/s "
