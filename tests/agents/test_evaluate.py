@@ -33,7 +33,8 @@ def test_evaluate_tiny_grid_writes_rows_and_both_pngs(tmp_path, capsys):
         policies.append(str(DEFAULT_MODEL))
     args = ["evaluate", "--stiffness-grid", "2", "--episodes", "1", "--k-min", "1e-5", "--k-max", "1e-2",
             "--schedule-stiffness", "1e-5", "1e-2", "--out", str(tmp_path), "--quiet",
-            "--set", "use_case=null", "--set", "damage_rule=crush_fraction"]  # the paper's task
+            "--set", "use_case=null", "--set", "damage_rule=crush_fraction", "--set", "hold_rule=slab",
+            "--set", "shape=ring"]  # the paper's task (PAPER_TASK)
     for p in policies:
         args += ["--policy", p]
     assert main(args) == 0
