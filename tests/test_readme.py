@@ -1,11 +1,13 @@
 """The README's Python snippets run as written, and its relative links and images (and those of docs/) exist.
 
-The snippets are the fenced ```python blocks of the "Quick start" and "Use with ..." sections. Each runs with
-``exec`` in a fresh namespace, in-process (torch and numba are imported once for all: about 10 s in all on the
-2-core machine), in an empty folder (what a snippet saves stays out of the repository). A training snippet shows
-the size it was measured at; it runs here at smoke size (:func:`smoke`). The rl-zoo3 command line of "Use with ..."
-is a bash block: the slow ``tests/agents/test_zoo.py`` runs it; ``tests/envs/test_sb3_examples.py`` runs the SB3
-snippets as a user would.
+The README is a front door (at most :data:`MAX_README_LINES` lines, its set-up commands within its first
+:data:`SETUP_WITHIN`); its other sections moved to docs/ pages in 0.14 (:data:`PAGES`). The snippets are the fenced
+```python blocks of the README and of those pages: the Quick start, and "Use with ..." in ``docs/usage.md``. Each runs
+with ``exec`` in a fresh namespace, in-process (torch and numba are imported once for all: about 10 s in all on the
+2-core machine), in an empty folder (what a snippet saves stays out of the repository). A training snippet shows the
+size it was measured at; it runs here at smoke size (:func:`smoke`). The rl-zoo3 command line of "Use with ..." is a
+bash block: the slow ``tests/agents/test_zoo.py`` runs it; ``tests/envs/test_sb3_examples.py`` runs the SB3 snippets
+as a user would. ``tests/test_readme_commands.py`` runs the commands of the same pages.
 """
 
 from __future__ import annotations
@@ -19,33 +21,57 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
 DOCS = ROOT / "docs"
-SECTIONS = ("Quick start", "Use with ...")
-"""The README sections (``## `` headings) whose Python blocks are run."""
+USAGE = DOCS / "usage.md"
+"""The page of the env's spaces and of "Use with ..." (Gymnasium's vector API, SB3, rl-zoo3, the physics alone)."""
+PAGES = (README, DOCS / "results.md", USAGE, DOCS / "terms.md", DOCS / "speed.md", DOCS / "commands.md",
+         DOCS / "bad-input.md", DOCS / "install.md", DOCS / "development.md")
+"""The README and the pages its sections moved to in 0.14: their snippets (here) and commands
+(``tests/test_readme_commands.py``) are run. A page that takes a README section joins this list."""
+MAX_README_LINES = 250
+SETUP_WITHIN = 60
+"""The README's first screen: its two set-up commands (main job and tests) lie within its first lines."""
 
 FENCE = re.compile(r"^```python\n(.*?)^```", re.S | re.M)
 HEADING = re.compile(r"^(#{1,6}) (.+?)\s*$", re.M)
 LINK = re.compile(r"!?\[(?:[^\]\[]|\[[^\]]*\])*\]\(([^)\s]+)(?:\s+\"[^\"]*\")?\)")
+HTML_ANCHOR = re.compile(r"<a\s+(?:id|name)=\"([^\"]+)\"", re.I)
 HAS_SB3 = importlib.util.find_spec("stable_baselines3") is not None
 SIZE = re.compile(r"\btotal_timesteps=([\d_]+)")
 SMOKE_TIMESTEPS = 1
 """A training snippet's ``learn(total_timesteps=N)`` runs with this: one rollout and one update."""
 
 
-def section(text: str, title: str) -> str:
+def page_name(page: Path) -> str:
+    """``README.md`` or ``docs/usage.md``: a page as messages name it."""
+    return page.relative_to(ROOT).as_posix()
+
+
+def section(text: str, title: str, page: str = "README.md") -> str:
     """The body of the ``## title`` section of a Markdown text (up to the next ``## `` heading)."""
     m = re.search(rf"^## {re.escape(title)}\s*$", text, re.M)
-    assert m, f"README.md has no '## {title}' section"
+    assert m, f"{page} has no '## {title}' section"
     end = re.search(r"^## ", text[m.end():], re.M)
     return text[m.end(): m.end() + end.start() if end else len(text)]
 
 
+def sections(text: str) -> list[tuple[str, str]]:
+    """``(title, body)`` of every ``## `` section of a Markdown text, in order (the text before the first: ``""``)."""
+    heads = list(re.finditer(r"^## (.+?)\s*$", text, re.M))
+    out = [("", text[: heads[0].start() if heads else len(text)])]
+    for i, m in enumerate(heads):
+        out.append((m.group(1), text[m.end(): heads[i + 1].start() if i + 1 < len(heads) else len(text)]))
+    return out
+
+
 def snippets() -> list[tuple[str, str]]:
-    """``(id, code)`` of every Python block of :data:`SECTIONS`, in order."""
-    text = README.read_text(encoding="utf-8")
+    """``(id, code)`` of every Python block of :data:`PAGES`, in order; the id names the page (but the README's) and
+    the section (``quick-0``, ``usage/use-2``)."""
     out = []
-    for title in SECTIONS:
-        for i, code in enumerate(FENCE.findall(section(text, title))):
-            out.append((f"{title.split()[0].lower()}-{i}", code))
+    for page in PAGES:
+        prefix = "" if page == README else page.stem + "/"
+        for title, body in sections(page.read_text(encoding="utf-8")):
+            for i, code in enumerate(FENCE.findall(body)):
+                out.append((f"{prefix}{(title.split() or ['top'])[0].lower()}-{i}", code))
     return out
 
 
@@ -69,7 +95,42 @@ def test_the_snippets_are_found():
     snippets (vector API, SB3 batched, SB3 setpoint wrapper, the physics alone) must all be there."""
     names = [name for name, _ in snippets()]
     assert names.count("quick-0") == 1
-    assert len([n for n in names if n.startswith("use-")]) >= 4, names
+    assert len([n for n in names if n.startswith("usage/use-")]) >= 4, names
+    assert len(names) == len(set(names)), names
+
+
+def _setup_lines(text: str) -> list[int]:
+    """The README lines (1-based) of its set-up commands: the ``pip install`` lines of its ```bash blocks."""
+    out = []
+    for m in re.finditer(r"^```bash\n(.*?)^```", text, re.S | re.M):
+        first = text.count("\n", 0, m.start(1)) + 1
+        out += [first + i for i, ln in enumerate(m.group(1).splitlines()) if ln.startswith("pip install ")]
+    return out
+
+
+def test_readme_is_a_front_door():
+    """Issue 36: the README is at most :data:`MAX_README_LINES` lines, and its two set-up commands (the main job and
+    the tests, each the line after its marker, which ``.ci/run`` and ``tests/test_readme_commands.py`` read) come
+    within its first :data:`SETUP_WITHIN` lines. Before 0.14 it was 882 lines, "Set up" at line 209."""
+    text = README.read_text(encoding="utf-8")
+    lines = text.splitlines()
+    assert len(lines) <= MAX_README_LINES, f"README.md is {len(lines)} lines, more than {MAX_README_LINES}: move a " \
+                                           f"section to a docs/ page (and add the page to PAGES)"
+    setup = _setup_lines(text)
+    assert len(setup) == 2, f"README.md should show exactly two set-up commands (main job, tests): lines {setup}"
+    for marker in ("<!-- main-command -->", "<!-- test-command -->"):
+        assert text.count(marker) == 1, marker
+        at = lines.index(marker) + 1  # 1-based line of the marker; the fence follows, then the command
+        assert lines[at] == "```bash" and at + 2 in setup, f"{marker} (line {at}) is not followed by its command"
+    assert max(setup) <= SETUP_WITHIN, f"README.md's set-up commands are at lines {setup}, past {SETUP_WITHIN}"
+
+
+def test_readme_links_every_page_its_sections_moved_to():
+    """A moved section stays findable from the front door: every page of :data:`PAGES` exists and is linked from
+    the README."""
+    targets = {t.partition("#")[0] for t in LINK.findall(README.read_text(encoding="utf-8"))}
+    missing = [page_name(p) for p in PAGES[1:] if not p.is_file() or page_name(p) not in targets]
+    assert not missing, f"README.md links none of {missing}"
 
 
 @pytest.mark.parametrize("code", _params())
@@ -90,7 +151,7 @@ def test_readme_snippet_runs(code, monkeypatch, tmp_path):
 def test_rl_zoo3_command_names_the_project_files():
     """The rl-zoo3 command line (run by the slow tests/agents/test_zoo.py) names a config that exists, the env id
     and the package that registers it."""
-    body = section(README.read_text(encoding="utf-8"), "Use with ...")
+    body = section(USAGE.read_text(encoding="utf-8"), "Use with ...", page_name(USAGE))
     lines = [ln for ln in body.splitlines() if ln.startswith("python -m rl_zoo3.train ")]
     assert len(lines) == 1, lines
     argv = lines[0].split()
@@ -106,9 +167,11 @@ def _slug(heading: str) -> str:
 
 
 def _anchors(path: Path) -> set[str]:
+    """The anchors of a page: its headings' (GitHub's slugs), and its ``<a id="...">`` (an anchor kept where a
+    section moved away, for the pages that link to it)."""
     text = re.sub(r"^```.*?^```", "", path.read_text(encoding="utf-8"), flags=re.S | re.M)
     seen: dict[str, int] = {}
-    out = set()
+    out = set(HTML_ANCHOR.findall(text))
     for _, title in HEADING.findall(text):
         slug = _slug(title)
         n = seen.get(slug, 0)

@@ -1,7 +1,9 @@
-"""Every command the README shows runs, and a test runs it.
+"""Every command the README shows runs, and a test runs it; so does every command of the docs pages its sections
+moved to in 0.14 (``tests/test_readme.py``'s ``PAGES``: results, usage, commands, ...).
 
-README.md is read when the tests are collected (it keeps changing), and every command it shows is taken from it:
-inline code spans (which may wrap across a line break) and the lines of ```bash blocks. Four kinds are kept:
+README.md and those pages are read when the tests are collected (they keep changing), and every command they show is
+taken from them (a command two pages show, once, from the first): inline code spans (which may wrap across a line
+break) and the lines of ```bash blocks. Four kinds are kept:
 
 - ``pneunet-grasp ...``: a *synopsis* (a usage line: ``[...]``, ``|``, ``...`` or a placeholder in capitals such as
   ``K``, ``N``, ``NAME_OR_MODEL``, ``YAML``) is checked, not run: its subcommand exists and every ``--flag`` it names
@@ -29,6 +31,7 @@ from __future__ import annotations
 import argparse
 import functools
 import importlib
+import importlib.util
 import os
 import re
 import shlex
@@ -46,6 +49,11 @@ pytestmark = pytest.mark.slow
 
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
+_spec = importlib.util.spec_from_file_location("readme_snippets", ROOT / "tests" / "test_readme.py")
+_readme = importlib.util.module_from_spec(_spec)
+_spec.loader.exec_module(_readme)
+PAGES: tuple[Path, ...] = _readme.PAGES
+"""The README and the docs pages its sections moved to (``tests/test_readme.py``'s, one list for both)."""
 PYPROJECT = ROOT / "pyproject.toml"
 PROG = "pneunet-grasp"
 
@@ -132,8 +140,14 @@ CHAINS = frozenset({"&&", "||", ";"})
 class Command:
     kind: str  # "pneunet-grasp", "rl_zoo3", "pip" or "pytest"
     argv: tuple[str, ...]  # the words after the program (after "pip install", "python -m pytest", ...)
-    text: str  # as the README shows it, whitespace normalised
-    line: int  # README line it starts on
+    text: str  # as the page shows it, whitespace normalised
+    line: int  # the line of its page it starts on
+    page: str = "README.md"  # the page that shows it: README.md or docs/NAME.md
+
+    @property
+    def where(self) -> str:
+        """``README.md line 12``: where a message sends the reader."""
+        return f"{self.page} line {self.line}"
 
     @property
     def synopsis(self) -> bool:
@@ -174,7 +188,7 @@ def _classify(words: list[str]) -> tuple[str, tuple[str, ...]] | None:
     return None
 
 
-def _commands_in(text: str, line: int) -> list[Command]:
+def _commands_in(text: str, line: int, page: str) -> list[Command]:
     """The commands of one bash line or inline span (``a && b`` gives two)."""
     out = []
     words: list[str] = []
@@ -184,13 +198,13 @@ def _commands_in(text: str, line: int) -> list[Command]:
             continue
         kind_argv = _classify(words) if words else None
         if kind_argv is not None:
-            out.append(Command(kind_argv[0], kind_argv[1], " ".join(words), line))
+            out.append(Command(kind_argv[0], kind_argv[1], " ".join(words), line, page))
         words = []
     return out
 
 
-def extract(text: str) -> list[Command]:
-    """Every command of a Markdown text, in order, each once (its first place)."""
+def extract(text: str, page: str = "README.md") -> list[Command]:
+    """Every command of a Markdown text (the page ``page``), in order, each once (its first place)."""
     found: list[Command] = []
     prose = list(text)
     for m in FENCE.finditer(text):
@@ -198,14 +212,14 @@ def extract(text: str) -> list[Command]:
         if m.group(1).strip().lower() in ("bash", "sh", "shell", "console"):
             body = m.group(2).replace("\\\n", " ")  # continuation lines
             for i, ln in enumerate(body.splitlines()):
-                found += _commands_in(ln.removeprefix("$ "), start_line + i)
+                found += _commands_in(ln.removeprefix("$ "), start_line + i, page)
         for i in range(m.start(), m.end()):  # blank the block out of the prose, keeping the line numbers
             if prose[i] != "\n":
                 prose[i] = " "
     prose_text = "".join(prose)
     for m in SPAN.finditer(prose_text):
         span = " ".join(m.group(1).replace("\\|", "|").split())  # a table's escaped pipe; wrapped lines
-        found += _commands_in(span, prose_text.count("\n", 0, m.start()) + 1)
+        found += _commands_in(span, prose_text.count("\n", 0, m.start()) + 1, page)
     seen: set[tuple[str, tuple[str, ...]]] = set()
     unique = []
     for cmd in sorted(found, key=lambda c: c.line):
@@ -216,7 +230,15 @@ def extract(text: str) -> list[Command]:
 
 
 def readme_commands() -> list[Command]:
-    return extract(README.read_text(encoding="utf-8"))
+    """Every command of :data:`PAGES`, page by page, each once (its first place)."""
+    seen: set[tuple[str, tuple[str, ...]]] = set()
+    out = []
+    for page in PAGES:
+        for cmd in extract(page.read_text(encoding="utf-8"), page.relative_to(ROOT).as_posix()):
+            if (cmd.kind, cmd.argv) not in seen:
+                seen.add((cmd.kind, cmd.argv))
+                out.append(cmd)
+    return out
 
 
 def _is_placeholder(word: str) -> bool:
@@ -358,7 +380,7 @@ def prepare(cmd: Command, tmp_path: Path, dry: bool = False) -> list[str]:
         argv += SMOKE[name]
     elif name not in CHEAP and name and not dry:
         pytest.fail(f"add a smoke entry for {name!r} to SMOKE in {Path(__file__).name} (or to CHEAP if it runs "
-                    f"small as it is): the README shows `{cmd.text}` (line {cmd.line})")
+                    f"small as it is): {cmd.page} shows `{cmd.text}` (line {cmd.line})")
     for (sub_name, flag), more in SMOKE_IF.items():
         if sub_name == name and _has(cmd.argv, flag):
             argv += more
@@ -448,17 +470,21 @@ def _snapshot(status_before):  # every test takes it, so that it is taken before
 
 def test_the_commands_are_found():
     """A broken regex, a renamed marker or a lost fence would make this module vacuous: the main job, the test
-    command, the rl-zoo3 line, the Commands table's usage lines and some concrete commands must all be found."""
+    command (in the README), the rl-zoo3 line, the Commands table's usage lines and some concrete commands must all
+    be found, and every page of :data:`PAGES` that shows commands contributes some."""
     text = README.read_text(encoding="utf-8")
     cmds = readme_commands()
+    assert {c.page for c in cmds} >= {"README.md", "docs/results.md", "docs/usage.md", "docs/commands.md",
+                                      "docs/speed.md"}, sorted({c.page for c in cmds})
     by_kind = {k: [c for c in cmds if c.kind == k] for k in (PROG, "rl_zoo3", "pip", "pytest")}
+    in_readme = {k: [c for c in v if c.page == "README.md"] for k, v in by_kind.items()}
     main_line = text[:text.index("<!-- main-command -->")].count("\n") + 1
     test_line = text[:text.index("<!-- test-command -->")].count("\n") + 1
-    assert any(c.argv == ("demo",) and 0 < c.line - main_line <= 3 for c in by_kind[PROG]), \
+    assert any(c.argv == ("demo",) and 0 < c.line - main_line <= 3 for c in in_readme[PROG]), \
         f"the main command `pneunet-grasp demo` was not found after <!-- main-command -->: {by_kind[PROG]}"
-    assert any(0 < c.line - test_line <= 3 for c in by_kind["pytest"]), \
+    assert any(0 < c.line - test_line <= 3 for c in in_readme["pytest"]), \
         f"the test command (python -m pytest) was not found after <!-- test-command -->: {by_kind['pytest']}"
-    assert any(0 < c.line - test_line <= 3 and "-e" in c.argv for c in by_kind["pip"]), "the test command's pip"
+    assert any(0 < c.line - test_line <= 3 and "-e" in c.argv for c in in_readme["pip"]), "the test command's pip"
     assert by_kind["rl_zoo3"], "the rl-zoo3 command line"
     synopses = [c for c in by_kind[PROG] if c.synopsis]
     concrete = [c for c in by_kind[PROG] if not c.synopsis]
@@ -492,7 +518,7 @@ def test_extraction_rules():
 def test_synopsis_matches_the_parser(cmd: Command):
     from pneunet_env.cli import COMMANDS
 
-    assert cmd.name in COMMANDS, f"`{cmd.text}` (README line {cmd.line}): no subcommand {cmd.name!r} in {PROG}"
+    assert cmd.name in COMMANDS, f"`{cmd.text}` ({cmd.where}): no subcommand {cmd.name!r} in {PROG}"
     parser = cli_parser(cmd.name)
     actions = parser._option_string_actions
     words = _synopsis_words(cmd.argv[len(cmd.name.split()):])
@@ -515,7 +541,7 @@ def test_synopsis_matches_the_parser(cmd: Command):
         for value in values:
             if value and not _is_placeholder(value) and value not in ("...", "\u2026") and value not in choices:
                 problems.append(f"{flag} {value}: not one of {sorted(choices)}")
-    assert not problems, f"`{cmd.text}` (README line {cmd.line}): " + "; ".join(problems)
+    assert not problems, f"`{cmd.text}` ({cmd.where}): " + "; ".join(problems)
 
 
 @pytest.mark.parametrize("cmd", _params(lambda c: c.kind == "rl_zoo3" and c.synopsis))
@@ -524,7 +550,7 @@ def test_rl_zoo3_synopsis_matches_its_help(cmd: Command):
     help_text = zoo_help()
     missing = [f for f in map(_flag, _synopsis_words(cmd.argv)) if f is not None and
                not re.search(rf"(?<![\w-]){re.escape(f)}(?![\w-])", help_text)]
-    assert not missing, f"`{cmd.text}` (README line {cmd.line}): rl_zoo3.train has no {missing}"
+    assert not missing, f"`{cmd.text}` ({cmd.where}): rl_zoo3.train has no {missing}"
 
 
 @pytest.mark.parametrize("cmd", _params(lambda c: c.kind == "pip"))
@@ -540,7 +566,7 @@ def test_pip_install_names_existing_extras(cmd: Command):
             continue  # a package from the index (torch==...): not this project
         for m in EXTRAS.finditer(word):
             extras = {e.strip() for e in m.group(1).split(",") if e.strip()}
-            assert extras <= declared, (f"`{cmd.text}` (README line {cmd.line}) names extras "
+            assert extras <= declared, (f"`{cmd.text}` ({cmd.where}) names extras "
                                         f"{sorted(extras - declared)} that pyproject.toml does not declare "
                                         f"({sorted(declared)})")
 
@@ -555,7 +581,7 @@ def test_pytest_command_names_declared_markers(cmd: Command):
     for i, word in enumerate(argv[:-1]):
         if word == "-m":
             names = set(re.findall(r"[A-Za-z_]\w*", argv[i + 1])) - {"and", "or", "not"}
-            assert names <= declared, f"`{cmd.text}` (README line {cmd.line}): undeclared markers {names - declared}"
+            assert names <= declared, f"`{cmd.text}` ({cmd.where}): undeclared markers {names - declared}"
 
 
 @pytest.mark.parametrize(("cmd", "also"), _run_params())
@@ -565,7 +591,7 @@ def test_command_runs(cmd: Command, also: tuple[str, ...], tmp_path, capfd, monk
     else:
         from pneunet_env.cli import COMMANDS
 
-        assert cmd.name in COMMANDS or not cmd.argv, f"`{cmd.text}` (README line {cmd.line}): no such subcommand"
+        assert cmd.name in COMMANDS or not cmd.argv, f"`{cmd.text}` ({cmd.where}): no such subcommand"
     argv = prepare(cmd, tmp_path)
     monkeypatch.chdir(ROOT)
     t0 = time.perf_counter()
@@ -579,7 +605,7 @@ def test_command_runs(cmd: Command, also: tuple[str, ...], tmp_path, capfd, monk
     TIMES.append((cmd.text, wall))
     print(f"\n[{wall:6.1f} s] {cmd.text}\n          ran as: {shlex.join(argv)}"
           + "".join(f"\n          (the same run as: {t})" for t in also))
-    where = f"`{cmd.text}` (README line {cmd.line}), run as `{shlex.join(argv)}`"
+    where = f"`{cmd.text}` ({cmd.where}), run as `{shlex.join(argv)}`"
     assert status in _ok_status(cmd), f"{where}: exit status {status}\n{output[-4000:]}"
     assert "Traceback (most recent call last)" not in output, f"{where}: printed a traceback\n{output[-4000:]}"
 

@@ -15,28 +15,33 @@ pressure is safe for soft objects yet firm enough for stiff ones. This module tu
 * **One evaluation of a design** (:func:`evaluate_design`) is batched (:mod:`agents.evaluation.batch`): every object x
   every candidate blind pressure (:data:`TARGETS`, 60 ramps to ``p~ = 0.02 .. 1.2``) is one vector env run. From it:
 
-  - the best blind ramp (the search's rule: most objects held; ties to the higher mean return, then the middle);
+  - the blind ramp: the centre of the pressure window around the best point (the search's rule: most objects held;
+    ties to the higher mean return, then the middle), robust to a regulator's error;
   - its success on force- and position-controlled objects, by Table 1's labels (the same split for every
     design: what the objects are) and by the design's own (what its mechanics make of them);
   - the grid oracle: whether *some* constant pressure of the grid holds each object (what a schedule that
     knew the object could reach with this actuator: a design that makes objects ungraspable shows here);
   - the pressure window: the contiguous range of blind pressures whose success stays within 5 points of the
     best, as a fraction of the best pressure;
-  - the success under manufacturing error: :data:`N_ERRORS` perturbed actuators (wall thicknesses
-    uniform within +-10 %, modulus within +-20 %, the same draws for every design) run the *same* schedule
-    (the same pressures in kPa), and each object meets one of them, drawn per object.
+  - the worst corner: the *same* schedule (kPa) at every corner (walls x0.9 / x1.1 crossed with the modulus
+    x0.8 / x1.2, the elastomer's data range, the blind pressure -/+ the regulator's error, ``--pressure-error-kpa``):
+    :func:`agents.design.space.corner_configs`; the largest wall stretch at the blind pressure, flagged when it
+    passes the stretch the material was fitted on;
+  - the success under random manufacturing error, a second figure: :data:`N_ERRORS` perturbed actuators (wall
+    thicknesses uniform within +-10 %, modulus within +-20 %, the same draws for every design), each object
+    meeting one of them, drawn per object.
 
 * **The search** runs on Optuna (a multi-objective TPE or NSGA-II sampler) over three objectives to maximise:
   blind success on force-controlled objects, on position-controlled ones (Table 1's labels: a Pareto pair),
-  and the worse of the two under manufacturing error. Its storage is a SQLite file in the output folder, so a
+  and the worse of the two at the worst corner. Its storage is a SQLite file in the output folder, so a
   stopped run resumes where it stopped; ``--storage URL`` names any Optuna storage (an RDB URL, or
   ``journal:PATH`` for a journal file), so workers on several machines join one study, and ``--jobs N`` runs
   N worker processes here. The Table 1 design is always trial 0.
 * **Held out.** Designs are searched on ``--objects`` objects (seeds ``seed * 1_000_003 + i``) and the best are
   reported on ``--held-out`` others (the demo's seeds), with the blind schedule found on the search objects.
 
-The best design is the one whose worst of (blind force-controlled, blind position-controlled, both under error)
-is highest, ties to the wider window (:func:`design_rank`). Outputs (``--out DIR``): ``design.json``,
+The best design is the one whose worst of (blind force-controlled, blind position-controlled, both at the worst
+corner) is highest, ties to the wider window (:func:`design_rank`). Outputs (``--out DIR``): ``design.json``,
 ``pareto.png``, ``curves.png`` (the pressure-curvature curves of the best designs beside Table 1, in the style
 of the paper's Fig. 3), ``importance.png`` (Optuna's PED-ANOVA importance of each parameter for the design score),
 and ``designs/rank-K.yaml``: each best design as an env config, with its tuned ramp beside it

@@ -51,7 +51,36 @@ def run_design_checks(n_objects: int = 200, seed: int = 0, base: EnvConfig | Non
     tforce = {h: s.blind["force"] for h, s in top.items()}
     fmt = lambda d, f: ", ".join(f"{k:g}: {f(v)}" for k, v in d.items())  # noqa: E731
     pct = lambda v: f"{v:.0%}"  # noqa: E731
+    from pneunet_env.config import load_config
+
+    nominal = gent[20.0]  # Table 1's actuator
+    slab = evaluate_design(_t1(), seeds, ref, load_config(base, hold_rule="slab"), seed)
+    worst_label = min(nominal.corners, key=lambda k: min(nominal.corners[k]["force"], nominal.corners[k]["position"]))
+    worst = nominal.worst_corner
     return [
+        CheckResult(
+            "design_weight_rule", "this package (0.14: the hold rule carries the object's weight)",
+            "Scored by the object's weight in 3D, not a slab of depth H, Table 1's blind ramp holds fewer "
+            "force-controlled objects",
+            f"blind force-controlled success: {slab.blind['force']:.0%} under the slab rule (at "
+            f"{slab.pressure_kpa:.1f} kPa) against {nominal.blind['force']:.0%} under the weight rule (at "
+            f"{nominal.pressure_kpa:.1f} kPa); position-controlled {slab.blind['position']:.0%} against "
+            f"{nominal.blind['position']:.0%}",
+            nominal.blind["force"] < slab.blind["force"] - 0.05,
+            criterion="the weight rule's force-controlled success is at least 5 points below the slab rule's",
+            values={"force_slab": slab.blind["force"], "force_weight": nominal.blind["force"]}),
+        CheckResult(
+            "design_table1_corners", "issue: a design a lab could build (worst corner >= 80 % in each regime)",
+            "Table 1's blind ramp survives its manufacturing corners (walls +-10 %, modulus +-20 %, the "
+            f"regulator's +-{nominal.pressure_error_kpa:g} kPa)",
+            f"worst corner: force {worst['force']:.0%}, position {worst['position']:.0%} ({worst_label}); every "
+            "corner: " + "; ".join(f"{k} {v['force']:.0%}/{v['position']:.0%}" for k, v in nominal.corners.items()),
+            min(worst["force"], worst["position"]) >= 0.80,
+            criterion="the worst corner holds at least 80 % of the objects in each regime", expected=False,
+            note="" if min(worst["force"], worst["position"]) >= 0.80 else
+                 f"a finding: at its worst corner ({worst_label}) Table 1's blind ramp holds "
+                 f"{worst['all']:.0%} of the objects",
+            values={"worst_force": worst["force"], "worst_position": worst["position"]}),
         CheckResult(
             "design_gent_window", "main §4 (a lower J smooths the balloon jump), on blind grasping",
             "A low Gent limit widens the window of blind pressures that hold the objects",

@@ -10,7 +10,7 @@ from dataclasses import asdict
 from pathlib import Path
 
 from agents.design.outputs import write_design
-from agents.design.space import parse_bounds
+from agents.design.space import PRESSURE_ERROR_KPA, parse_bounds
 from agents.design.storage import make_storage
 from agents.design.study import StudySpec, report, run_study, work
 from pneunet_env import arguments as checks
@@ -65,6 +65,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--bound", action="append", default=[], metavar="KEY=LOW:HIGH",
                         help="narrow a parameter's range (repeatable), e.g. top_thickness_mm=1.5:3")
     parser.add_argument("--config", default=None, help="base env config YAML (objects, task) the design changes")
+    parser.add_argument("--pressure-error-kpa", type=float, default=PRESSURE_ERROR_KPA, metavar="KPA",
+                        help="the regulator's error a blind pressure is scored at, either way (default "
+                             f"{PRESSURE_ERROR_KPA:g} kPa: 1 %% of a 100 kPa full scale, SMC ITV-series)")
     parser.add_argument("--out", type=checks.output_dir, default=None,
                         help="output folder (default design/USE_CASE), checked before any design is run")
     parser.add_argument("--export", type=checks.output_file, default=None,
@@ -101,7 +104,7 @@ def spec_from_args(args: argparse.Namespace) -> StudySpec:
     spec = StudySpec(out=out, use_case=args.use_case, class_weights=weights, trials=args.trials, jobs=args.jobs,
                      storage=args.storage, study_name=args.study_name, seed=args.seed, objects=args.objects,
                      held_out=args.held_out, sampler=args.sampler, bounds=parse_bounds(args.bound),
-                     config=args.config, top=args.top)
+                     config=args.config, top=args.top, pressure_error_kpa=args.pressure_error_kpa)
     make_storage(spec.storage, out)  # a storage it must not write to, or cannot reach, is named now, before any work
     return spec
 

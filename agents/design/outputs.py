@@ -30,6 +30,11 @@ def design_yaml(params: Mapping[str, Any], base: EnvConfig, note: str) -> str:
     return head + dump_yaml(body, sort_keys=False)
 
 
+OUTSIDE_NOTE = " (OUTSIDE the stretch its material was fitted on: not buildable as scored)"
+NO_DATA_NOTE = (" (the paper's own material, with no elastomer's data behind it: a requirement on the material, not a "
+                "design to build)")
+
+
 def write_design(path: Path, row: dict[str, Any], base: EnvConfig, study: str) -> Path:
     """``PATH.yaml`` (the design's env config) and ``PATH.best_ramp.json`` (its blind ramp, found on the search
     objects), both written atomically."""
@@ -46,8 +51,13 @@ def write_design(path: Path, row: dict[str, Any], base: EnvConfig, study: str) -
             "steps.\n"
             f"Held-out objects ({h['objects']['all']}): force-controlled {h['blind']['force']:.1%}, "
             f"position-controlled {h['blind']['position']:.1%} (Table 1's labels); oracle "
-            f"{h['oracle']['force']:.1%} / {h['oracle']['position']:.1%}; under manufacturing error "
-            f"{h['robust']['force']:.1%} / {h['robust']['position']:.1%}.\n"
+            f"{h['oracle']['force']:.1%} / {h['oracle']['position']:.1%}; at the worst corner (walls, modulus, the "
+            f"material's range, the regulator's +-{h.get('pressure_error_kpa', 0):g} kPa) "
+            f"{h.get('worst_corner', {}).get('force', float('nan')):.1%} / "
+            f"{h.get('worst_corner', {}).get('position', float('nan')):.1%}; largest wall stretch "
+            f"{h.get('wall_stretch', float('nan')):.2f}"
+            f"{OUTSIDE_NOTE if h.get('outside_data') else NO_DATA_NOTE if h.get('outside_data', 0) is None else ''}"
+            ".\n"
             'Load with gym.make("PneuNetGrasp-v1", config="<this file>").')
     path.parent.mkdir(parents=True, exist_ok=True)
     atomic_write_bytes(path, design_yaml(row["params"], base, note).encode())
@@ -58,8 +68,9 @@ def write_design(path: Path, row: dict[str, Any], base: EnvConfig, study: str) -
             "max_pressure_kpa": cfg.task.max_pressure_kpa,
             "search": {"by": "pneunet-grasp design", "study": study, "trial": row["trial"],
                        "objects": s["objects"]["all"]},
-            "score": {"search": {k: s[k] for k in ("blind", "oracle", "robust")},
-                      "held_out": {k: h[k] for k in ("blind", "oracle", "robust")}}}
+            "score": {"search": {k: s.get(k) for k in ("blind", "oracle", "robust", "worst_corner")},
+                      "held_out": {k: h.get(k) for k in ("blind", "oracle", "robust", "worst_corner", "corners",
+                                                          "wall_stretch", "outside_data")}}}
     atomic_write_bytes(path.with_suffix(".best_ramp.json"), (json.dumps(data, indent=1) + "\n").encode())
     return path
 

@@ -28,6 +28,18 @@ MODULUS_ERROR = 0.20
 """The elastomer's modulus error (batch to batch, cure): uniform within +-20 %."""
 WINDOW_POINTS = 0.05
 """The pressure window: the blind pressures whose success stays within this of the best."""
+WALL_CORNERS = (1.0 - WALL_ERROR, 1.0 + WALL_ERROR)
+"""The walls' corners: all three walls thinner, or all thicker, by :data:`WALL_ERROR`."""
+MODULUS_CORNERS = (1.0 - MODULUS_ERROR, 1.0 + MODULUS_ERROR)
+"""The modulus' corners (batch to batch, cure), crossed with :data:`WALL_CORNERS`."""
+PRESSURE_ERROR_KPA = 1.0
+"""The regulator's pressure error (kPa) a blind schedule is scored at, both ways: 1 % of a 100 kPa full scale. SMC's
+ITVH electro-pneumatic regulators are specified to linearity +-1 % F.S., hysteresis 1 % F.S. and repeatability
++-1 % F.S. (SMC catalogue CAT.ES60-23A); a 0-100 kPa unit is the smallest range of such a regulator, so +-1 kPa is
+the least error a design's blind pressure must survive. ``pneunet-grasp design --pressure-error-kpa`` sets it."""
+FIT_STRETCH = 3.0
+"""The stretch up to which the elastomers' Gent fits were made (``elastomers.yaml``: engineering strain <= 2): a
+design whose walls stretch further at its blind pressure is "outside the material data"."""
 
 
 @dataclass(frozen=True)
@@ -43,12 +55,29 @@ class Bound:
 
 @dataclass(frozen=True)
 class Elastomer:
-    """A casting elastomer: its small-strain shear modulus and Gent limit, from a fit to measured curves."""
+    """A casting elastomer: its small-strain shear modulus and Gent limit, from a fit to measured curves, and the
+    range its data support: ``gent_limit_range``, J fitted on stretches up to 2 and up to 3.5 (the same data, the
+    nominal J's window being 3), and ``datasheet_mu_kpa``, the neo-Hookean ``mu`` of the data sheet's 100 % modulus
+    (the crosshead-strain fits may underestimate ``mu`` by up to that factor). ``None``: no data (Table 1's
+    material, the paper's own)."""
 
     name: str
     shear_modulus_kpa: float
     gent_limit: float
     source: str
+    gent_limit_range: tuple[float, float] | None = None
+    datasheet_mu_kpa: float | None = None
+
+    def corners(self) -> list[tuple[str, float, float]]:
+        """``(label, mu, J)`` of the material's range, each against the nominal fit (:meth:`Elastomer` docs)."""
+        out: list[tuple[str, float, float]] = []
+        if self.gent_limit_range is not None:
+            lo, hi = self.gent_limit_range
+            out += [(f"J {lo:g} (fit on stretch <= 2)", self.shear_modulus_kpa, lo),
+                    (f"J {hi:g} (fit on stretch <= 3.5)", self.shear_modulus_kpa, hi)]
+        if self.datasheet_mu_kpa is not None:
+            out.append((f"mu {self.datasheet_mu_kpa:g} kPa (data sheet)", self.datasheet_mu_kpa, self.gent_limit))
+        return out
 
 
 @lru_cache(maxsize=1)
@@ -75,7 +104,12 @@ def elastomers() -> dict[str, Elastomer]:
         mu, j = e.get("shear_modulus_kpa"), e.get("gent_limit")
         if mu is None or j is None:
             continue  # no sourced Gent limit: not a design choice
-        out[str(name)] = Elastomer(str(name), float(mu), float(j), str(e.get("source", "")))
+        windows = e.get("gent_limit_by_fit_window") or {}
+        j_range = ((float(windows["lambda_le_2"]), float(windows["lambda_le_3_5"]))
+                   if "lambda_le_2" in windows and "lambda_le_3_5" in windows else None)
+        sheet = e.get("mu_from_datasheet_100pct_kpa")
+        out[str(name)] = Elastomer(str(name), float(mu), float(j), str(e.get("source", "")), j_range,
+                                   None if sheet is None else float(sheet))
     return out
 
 
@@ -152,6 +186,30 @@ def table1_design() -> dict[str, Any]:
     """The seed paper's Table 1 actuator as design parameters."""
     a = EnvConfig().actuator
     return {b.key: getattr(a, b.key) for b in DESIGN_SPACE} | {"elastomer": TABLE1_ELASTOMER.name}
+
+
+def corner_configs(config: EnvConfig, elastomer: str | None) -> list[tuple[str, EnvConfig]]:
+    """``(label, config)`` of a design's corners, each run with the nominal design's schedule (kPa): the walls
+    (:data:`WALL_CORNERS`, all three together) crossed with the modulus (:data:`MODULUS_CORNERS`), then each corner
+    of the elastomer's data range (:meth:`Elastomer.corners`) at nominal walls. Not crossed with each other: the
+    material's corners already move ``mu`` by more than the modulus error."""
+    out = [(f"walls x{w:g}, modulus x{m:g}", perturbed_config(config, (w, w, w, m)))
+           for w in WALL_CORNERS for m in MODULUS_CORNERS]
+    table = elastomers()
+    if elastomer is not None and elastomer in table:
+        for label, mu, j in table[elastomer].corners():
+            out.append((label, load_config(config, shear_modulus_kpa=mu, gent_limit=j)))
+    return out
+
+
+def wall_stretch(config: EnvConfig, pressure_kpa: float) -> float:
+    """The largest wall stretch (top or side, ``1 + e``) of the free actuator loaded from rest to ``pressure_kpa``:
+    the most any wall stretches at that pressure (an object only holds it back)."""
+    from pneunet_env.physics.solver import solve_equilibrium
+
+    eq = solve_equilibrium(pressure_kpa / config.actuator.shear_modulus_kpa, 0.0, 0.02, config.actuator_params,
+                           options=config.solver)
+    return 1.0 + max(float(eq.top_strain), float(eq.side_strain))
 
 
 def perturbed_config(config: EnvConfig, factors: Sequence[float]) -> EnvConfig:

@@ -23,8 +23,10 @@ from agents.design.outputs import write_outputs
 from agents.design.score import DesignScore, design_rank, evaluate_design, reference_regimes
 from agents.design.space import (
     DESIGN_SPACE,
+    FIT_STRETCH,
     MODULUS_ERROR,
     N_ERRORS,
+    PRESSURE_ERROR_KPA,
     RAMP_STEPS,
     TARGETS,
     WALL_ERROR,
@@ -36,7 +38,8 @@ from agents.design.space import (
 from agents.design.storage import _knowingly, _optuna, make_storage
 from pneunet_env.config import EnvConfig, load_config
 
-STUDY_SETTINGS = ("use_case", "class_weights", "objects", "seed", "bounds", "elastomers", "config")
+STUDY_SETTINGS = ("use_case", "class_weights", "objects", "seed", "bounds", "elastomers", "config",
+                  "pressure_error_kpa")
 """What a study was made with: a resumed (or joined) study must be run with the same."""
 
 
@@ -58,8 +61,12 @@ class StudySpec:
     bounds: dict[str, tuple[float, float]] = field(default_factory=dict)
     config: str | None = None
     top: int = 3
+    pressure_error_kpa: float = PRESSURE_ERROR_KPA
 
     def __post_init__(self) -> None:
+        e = self.pressure_error_kpa
+        if isinstance(e, bool) or not isinstance(e, (int, float)) or not math.isfinite(e) or e < 0:
+            raise ValueError(f"pressure_error_kpa must be a finite number >= 0 (kPa), got {e!r}")
         for name in ("trials", "objects", "held_out", "jobs", "top"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
@@ -88,7 +95,8 @@ class StudySpec:
     def settings(self) -> dict[str, Any]:
         return {"use_case": self.use_case, "class_weights": self.class_weights, "objects": self.objects,
                 "seed": self.seed, "bounds": {k: list(v) for k, v in sorted(self.bounds.items())},
-                "elastomers": sorted(elastomers()), "config": self.config}
+                "elastomers": sorted(elastomers()), "config": self.config,
+                "pressure_error_kpa": float(self.pressure_error_kpa)}
 
 
 def _space(spec: StudySpec) -> dict[str, tuple[float, float]]:
@@ -102,10 +110,11 @@ def _suggest(trial, spec: StudySpec) -> dict[str, Any]:
 
 
 def _objectives(s: DesignScore) -> tuple[float, float, float]:
-    """Blind force-controlled and position-controlled success, and the worse of the two under error (an empty
-    regime counts as 1: there is nothing in it to fail)."""
+    """Blind force-controlled and position-controlled success, and the worse of the two at the worst corner (an
+    empty regime counts as 1: there is nothing in it to fail)."""
     f = lambda x: 1.0 if math.isnan(x) else x  # noqa: E731
-    return f(s.blind["force"]), f(s.blind["position"]), min(f(s.robust["force"]), f(s.robust["position"]))
+    worst = s.worst_corner or s.robust
+    return f(s.blind["force"]), f(s.blind["position"]), min(f(worst["force"]), f(worst["position"]))
 
 
 def _end_session(study) -> None:
@@ -189,7 +198,8 @@ def _objective(spec: StudySpec, seeds: np.ndarray, reference: np.ndarray, parall
             raise optuna.TrialPruned(f"the design of trial {same.number}")
         try:
             with interrupts.evaluation():
-                s = evaluate_design(params, seeds, reference, base, spec.seed, parallel=parallel)
+                s = evaluate_design(params, seeds, reference, base, spec.seed, parallel=parallel,
+                                    pressure_error_kpa=spec.pressure_error_kpa)
         except ValueError as exc:  # a geometry the model refuses (no cavity left): not a design
             trial.set_user_attr("invalid", str(exc))
             raise optuna.TrialPruned(str(exc)) from None
@@ -599,26 +609,34 @@ def report(spec: StudySpec, search_s: float = math.nan, progress: bool | None = 
     if not scored:
         raise ValueError(f"study {spec.name!r} has no finished design yet")
     ranked = sorted(scored, key=lambda ts: design_rank(ts[1]), reverse=True)
+    # the ranks are of designs a lab could build: an elastomer with data, its walls within the stretch it was fitted
+    # on; the best design that is not buildable is reported beside them as a requirement (the mu and J it needs)
+    buildable = [ts for ts in ranked if _buildable(ts[1])] or ranked
     top = []
     seen: set[str] = set()
-    for t, s in ranked:
+    for t, s in buildable:
         key = json.dumps(s.params, sort_keys=True)
         if key not in seen:
             seen.add(key)
             top.append((t, s))
         if len(top) == spec.top:
             break
+    requirement = [("requirement", ranked[0])] if not _buildable(ranked[0][1]) and ranked[0] not in top else []
     base = spec.base_config()
     held = episode_seeds(spec.held_out, spec.seed, held_out=True)
     ref_held = reference_regimes(held, base)
     rows = []
-    for label, (t, s) in [("table1", table1)] * (table1 is not None) + [(f"rank-{k + 1}", ts) for k, ts in
-                                                                      enumerate(top)]:
-        h = evaluate_design(s.params, held, ref_held, base, spec.seed, target=s.target)
+    for label, (t, s) in ([("table1", table1)] * (table1 is not None) + [(f"rank-{k + 1}", ts) for k, ts in
+                                                                       enumerate(top)] + requirement):
+        h = evaluate_design(s.params, held, ref_held, base, spec.seed, target=s.target,
+                            pressure_error_kpa=spec.pressure_error_kpa)
         rows.append({"label": label, "trial": t.number, "params": s.params, "validity": validity(s.params),
                      "elastomer": asdict(elastomers()[s.params["elastomer"]]), "search": s.to_dict(),
-                     "held_out": h.to_dict()})
+                     "held_out": h.to_dict(), "buildable": h.outside_data is False})
         log(_line(label, s, h))
+        if label == "requirement":
+            log(f"             no buildable design reaches it: it needs a material of mu {_mu(s):g} kPa and J "
+                f"{_j(s):g} with data up to a stretch of {h.wall_stretch:.2f}")
     vals = np.array([_objectives(s) for _, s in scored])
     front = _pareto(vals)
     importance = _importance(study)
@@ -627,8 +645,11 @@ def report(spec: StudySpec, search_s: float = math.nan, progress: bool | None = 
         "distinct": len({json.dumps(t.params, sort_keys=True) for t, _ in scored}),
         "duplicates": sum("duplicate_of" in t.user_attrs for t in study.trials),
         "search_seconds": search_s, "objects": spec.objects, "held_out": spec.held_out,
-        "targets": list(TARGETS), "ramp_steps": RAMP_STEPS, "errors": {"walls": WALL_ERROR, "modulus": MODULUS_ERROR,
-                                                                      "actuators": N_ERRORS},
+        "targets": list(TARGETS), "ramp_steps": RAMP_STEPS,
+        "errors": {"walls": WALL_ERROR, "modulus": MODULUS_ERROR, "actuators": N_ERRORS,
+                   "pressure_kpa": spec.pressure_error_kpa, "fit_stretch": FIT_STRETCH,
+                   "corners": ("walls x{0.9, 1.1} crossed with modulus x{0.8, 1.2}; the elastomer's J range and "
+                               "data-sheet mu at nominal walls; the blind pressure -/+ the regulator's error")},
         "window_points": WINDOW_POINTS, "importance": importance, "designs": rows,
         "all": [{"trial": t.number, "params": s.params, "objectives": list(_objectives(s)),
                  "score": s.score, "window_fraction": s.window_fraction, "pressure_kpa": s.pressure_kpa,
@@ -647,8 +668,30 @@ def _line(label: str, s: DesignScore, h: DesignScore) -> str:
             f"{s.params['side_thickness_mm']:.2f} h_b {s.params['base_thickness_mm']:.2f} d "
             f"{s.params['chamber_height_mm']:.2f} w {s.params['width_mm']:.2f} mm; blind {h.pressure_kpa:5.1f} kPa | "
             f"held out: force {_pct(h.blind['force'])} position {_pct(h.blind['position'])} (oracle "
-            f"{_pct(h.oracle['force'])} {_pct(h.oracle['position'])}), under error {_pct(h.robust['force'])} "
-            f"{_pct(h.robust['position'])}, window {h.window_fraction:.0%}")
+            f"{_pct(h.oracle['force'])} {_pct(h.oracle['position'])}), worst corner "
+            f"{_pct(h.worst_corner.get('force', math.nan))} {_pct(h.worst_corner.get('position', math.nan))}, random "
+            f"error {_pct(h.robust['force'])} {_pct(h.robust['position'])}, window {h.window_fraction:.0%}; wall "
+            f"stretch {h.wall_stretch:.2f}{_data_note(h)}")
+
+
+def _buildable(s: DesignScore) -> bool:
+    """A design a lab could build: its elastomer has data (not the paper's own material) and its walls stretch no
+    further than the data its material was fitted on."""
+    return s.outside_data is False
+
+
+def _mu(s: DesignScore) -> float:
+    return elastomers()[s.params["elastomer"]].shear_modulus_kpa
+
+
+def _j(s: DesignScore) -> float:
+    return elastomers()[s.params["elastomer"]].gent_limit
+
+
+def _data_note(s: DesignScore) -> str:
+    if s.outside_data is None:
+        return " (no material data: the paper's material)"
+    return " OUTSIDE THE MATERIAL DATA (fitted to 3): not buildable as scored" if s.outside_data else ""
 
 
 def _importance(study) -> dict[str, float]:

@@ -37,6 +37,43 @@ def test_every_elastomer_has_a_source_and_a_gent_limit():
         assert e.shear_modulus_kpa > 0 and e.gent_limit > 0 and len(e.source) > 10, e
 
 
+def test_each_elastomer_carries_the_range_its_data_support():
+    """J over the fit windows (stretch <= 2 and <= 3.5 around the nominal <= 3) and the data sheet's mu: the corners
+    a design is scored at; the paper's Table 1 material has no data, so no range."""
+    from agents.design.space import elastomers as table
+
+    eco = table()["ecoflex_00_10"]
+    assert eco.gent_limit_range == (13.4, 24.7) and eco.datasheet_mu_kpa == 31.5
+    assert [(mu, j) for _, mu, j in eco.corners()] == [(7.6, 13.4), (7.6, 24.7), (31.5, 22.0)]
+    assert table()["table1"].corners() == []
+    for e in table().values():
+        if e.gent_limit_range is not None:
+            assert e.gent_limit_range[0] <= e.gent_limit <= e.gent_limit_range[1], e.name
+
+
+def test_a_design_is_scored_at_its_worst_corner_and_its_window_centre():
+    from agents.design.space import PRESSURE_ERROR_KPA, wall_stretch
+
+    seeds = episode_seeds(24)
+    ref = reference_regimes(seeds)
+    s = evaluate_design({**table1_design(), "elastomer": "ecoflex_00_30"}, seeds, ref)
+    assert len(s.corners) == 4 + 3 + 2  # walls x modulus, the material's three, the regulator either way
+    for k in ("force", "position", "all"):
+        vals = [c[k] for c in s.corners.values() if not np.isnan(c[k])]
+        assert s.worst_corner[k] == (min(vals) if vals else s.worst_corner[k])
+    assert f"pressure -{PRESSURE_ERROR_KPA:g} kPa" in s.corners and f"pressure +{PRESSURE_ERROR_KPA:g} kPa" in s.corners
+    lo, hi = s.window_kpa
+    step = s.pressures_kpa[1] - s.pressures_kpa[0]
+    assert lo <= s.pressure_kpa <= hi and abs(s.pressure_kpa - (lo + hi) / 2) <= step / 2 + 1e-9  # the centre
+    assert s.wall_stretch == wall_stretch(design_config(s.params), s.pressure_kpa) > 1.0
+    assert s.outside_data is (s.wall_stretch > 3.0)
+    t1 = evaluate_design(table1_design(), seeds, ref, pressure_error_kpa=0.0)
+    assert t1.outside_data is None and len(t1.corners) == 4 + 2  # no material data: the paper's own material
+    from agents.design.score import design_rank
+
+    assert design_rank(s)[0] <= min(s.worst_corner["force"], s.worst_corner["position"])
+
+
 def test_design_space_bounds_are_sourced():
     for b in DESIGN_SPACE:
         assert 0 < b.low < b.high and b.source
@@ -82,8 +119,12 @@ def test_study_with_the_embedded_storage_then_resumed(tmp_path, capsys):
     res = json.loads((out / "design.json").read_text())
     assert res["trials"] == 2 and (out / "study.db").is_file()
     labels = [d["label"] for d in res["designs"]]
-    assert labels == ["table1", "rank-1"]
+    assert labels in (["table1", "rank-1"], ["table1", "rank-1", "requirement"])
     assert res["designs"][0]["params"]["elastomer"] == "table1"
+    if "requirement" in labels:  # the best design is not buildable: the ranks are the buildable ones
+        rows = {d["label"]: d for d in res["designs"]}
+        assert rows["rank-1"]["search"]["outside_data"] is False
+        assert rows["requirement"]["search"]["outside_data"] is not False
     for name in ("pareto.png", "curves.png", "importance.png", "designs/rank-1.yaml", "designs/rank-1.best_ramp.json"):
         assert (out / name).is_file(), name
     cfg = load_config(out / "designs" / "rank-1.yaml")  # an env config gym.make takes
@@ -150,6 +191,9 @@ def test_two_workers_share_one_study(tmp_path, four_cores):
     (["--bound", "top_thickness_mm=nan:2"], "finite"),
     (["--export", "x.txt"], "yaml"),
     (["--worker", "--report"], "exclude"),
+    (["--pressure-error-kpa", "-1"], "pressure_error_kpa must be a finite number >= 0"),
+    (["--pressure-error-kpa", "nan"], "pressure_error_kpa must be a finite number >= 0"),
+    (["--pressure-error-kpa", "inf"], "pressure_error_kpa must be a finite number >= 0"),
 ])
 def test_bad_values_are_refused_before_any_work(tmp_path, argv, match):
     with pytest.raises(SystemExit, match=match):

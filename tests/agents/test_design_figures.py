@@ -1,7 +1,7 @@
 """The design study's figures (agents/design/outputs.py): their text fits, and Table 1 stays in sight.
 
-Drawn from a recorded study (``docs/img/design/kitchen/design.json``, the README's kitchen study) with matplotlib's
-Agg backend; no study is run.
+Drawn from a recorded study (``docs/img/design/kitchen/design.json``, the kitchen study of docs/results.md) with
+matplotlib's Agg backend; no study is run.
 """
 
 from __future__ import annotations

@@ -445,7 +445,7 @@ def test_resume_without_checkpoint_fails(tmp_path):
 
 TRAIN_STEPS = 300_000
 """The training test's length, in env-steps (not in minutes: a test asserts what training reaches, never how long a
-machine takes; the README's PPO rows are the 10-minute runs of ``configs/train/ppo.yaml``)."""
+machine takes; docs/results.md's PPO rows are the 10-minute runs of ``configs/train/ppo.yaml``)."""
 
 
 @pytest.mark.slow

@@ -1,4 +1,4 @@
-"""The README's Stable-Baselines3 examples ("Use with ..." > "Stable-Baselines3") train as the project trains, say
+"""The Stable-Baselines3 examples (docs/usage.md, "Use with ..." > "Stable-Baselines3") train as the project trains, say
 what they reach, and run as a user runs them.
 
 - Their PPO and env settings are ``configs/train/ppo.yaml``'s (what ``pneunet-grasp train`` uses), read from the
@@ -7,7 +7,7 @@ what they reach, and run as a user runs them.
 - Each says, after its block, the size it was measured at (its ``total_timesteps``, written out: ``200,000 steps``)
   and what it reached (a success rate).
 - Each runs as a script in an empty folder at smoke size (``tests/test_readme.py``'s :func:`smoke`), and the
-  README's scoring command (``pneunet-grasp demo ... --policy MODEL.zip:action=setpoint``, ``MODEL`` the name the
+  page's scoring command (``pneunet-grasp demo ... --policy MODEL.zip:action=setpoint``, ``MODEL`` the name the
   example saves) scores the model it saved (slow: two fresh interpreters for each, about 25 s on 2 cores).
 """
 
@@ -31,17 +31,17 @@ readme = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(readme)
 
 SUBSECTION = "Stable-Baselines3"
-"""The ``### `` heading, inside the README's "Use with ..." section, whose Python blocks are checked here."""
+"""The ``### `` heading, inside docs/usage.md's "Use with ..." section, whose Python blocks are checked here."""
 SCORE = re.compile(r"`(pneunet-grasp demo [^`]*MODEL\.zip:action=setpoint[^`]*)`")
-"""The README's command that scores an example's model (``MODEL``: the name the example saves)."""
+"""The page's command that scores an example's model (``MODEL``: the name the example saves)."""
 HAS_SB3 = readme.HAS_SB3
 
 
 def subsection() -> str:
     """The text of the ``### Stable-Baselines3`` subsection (up to the next ``### `` heading)."""
-    body = readme.section(readme.README.read_text(encoding="utf-8"), "Use with ...")
+    body = readme.section(readme.USAGE.read_text(encoding="utf-8"), "Use with ...", readme.page_name(readme.USAGE))
     m = re.search(rf"^### {re.escape(SUBSECTION)}\s*$", body, re.M)
-    assert m, f"README.md's 'Use with ...' has no '### {SUBSECTION}'"
+    assert m, f"docs/usage.md's 'Use with ...' has no '### {SUBSECTION}'"
     end = re.search(r"^### ", body[m.end():], re.M)
     return body[m.end(): m.end() + end.start() if end else len(body)]
 
@@ -94,7 +94,7 @@ def _size(code: str) -> int:
 
 @pytest.mark.parametrize(("code", "prose"), EXAMPLES, ids=IDS)
 def test_example_states_its_size_and_what_it_reaches(code, prose):
-    """The README's examples learn at the size they show, and say what they reach there (issue 32: at 20,000 steps
+    """The examples (usage.md) learn at the size they show, and say what they reach there (issue 32: at 20,000 steps
     the earlier ones held nothing, and the README said neither how many steps they need nor what they reach)."""
     n = _size(code)
     assert f"{n:,} steps" in prose, f"the text after the example does not state its size, '{n:,} steps'"
@@ -141,7 +141,7 @@ def test_example_trains_with_ppo_yaml(code, prose):
 
 
 def test_the_scoring_command_is_shown():
-    """The README names the command that scores an example's model, with ``MODEL`` for the name it saves."""
+    """docs/usage.md names the command that scores an example's model, with ``MODEL`` for the name it saves."""
     assert len(SCORE.findall(" ".join(subsection().split()))) == 1
 
 
@@ -149,7 +149,7 @@ def test_the_scoring_command_is_shown():
 @pytest.mark.skipif(not HAS_SB3, reason="stable_baselines3 is not installed (the rl extra)")
 @pytest.mark.parametrize(("code", "prose"), EXAMPLES, ids=IDS)
 def test_example_runs_as_a_user_runs_it(code, prose, tmp_path):
-    """The example, at smoke size, as a script run by a fresh interpreter in an empty folder; then the README's
+    """The example, at smoke size, as a script run by a fresh interpreter in an empty folder; then the page's
     scoring command on the model it saved, which must be scored on every object (a row with its name)."""
     saved = re.findall(r"""model\.save\(["']([^"']+)["']\)""", code)
     assert len(saved) == 1, "the example saves no model (model.save('NAME')) for the scoring command"
