@@ -15,7 +15,9 @@ numpy arrays of one shape for a batch.
 from __future__ import annotations
 
 import dataclasses
+import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -64,12 +66,36 @@ def object_mass_kg(shape, radius_mm, density_kg_m3, thickness_mm=0.0, length_mm=
     ``shape`` is a name or a code, or an integer array of codes (a batch); the others broadcast against it. The
     compliant depth ``H`` enters only the ring's mass: a solid object's ``H`` is the layer that deforms, not its
     size."""
+    if type(shape) in _SCALAR_CODES and all(type(a) in _SCALARS for a in (radius_mm, density_kg_m3, thickness_mm,
+                                                                         length_mm)):
+        return _mass_one(SHAPES.index(shape) if type(shape) is str else int(shape), float(radius_mm),
+                         float(density_kg_m3), float(thickness_mm), float(length_mm))
     code = SHAPES.index(shape) if isinstance(shape, str) else np.asarray(shape)
     R, rho = np.asarray(radius_mm, dtype=float) * 1e-3, np.asarray(density_kg_m3, dtype=float)
     L, H = np.asarray(length_mm, dtype=float) * 1e-3, np.asarray(thickness_mm, dtype=float) * 1e-3
     volume = np.where(code == 0, 4.0 / 3.0 * np.pi * R * R * R,
                       np.where(code == 1, np.pi * R * R * L, np.pi * (R * R - (R - H) * (R - H)) * L))
     return _as(volume * rho)
+
+
+_SCALARS = (float, int, np.float64)
+"""The types of one object's numbers that take the scalar path (:func:`_material_fields`, :func:`_mass_one`)."""
+_SCALAR_CODES = (str, int, np.int64)
+
+
+def _mass_one(code: int, radius_mm: float, density_kg_m3: float, thickness_mm: float, length_mm: float) -> float:
+    """:func:`object_mass_kg` (kg) of one object, in float arithmetic: the same operations in the same order as the
+    array path (so the same bits: IEEE ``+ - * /`` round alike on floats and in numpy's loops), only the shape's
+    own branch computed."""
+    R = radius_mm * 1e-3
+    if code == 0:
+        volume = 4.0 / 3.0 * math.pi * R * R * R
+    elif code == 1:
+        volume = math.pi * R * R * (length_mm * 1e-3)
+    else:
+        H = thickness_mm * 1e-3
+        volume = math.pi * (R * R - (R - H) * (R - H)) * (length_mm * 1e-3)
+    return volume * density_kg_m3
 
 
 def stiffness_per_modulus(thickness_mm, curvature_per_m, scales: Scales = DEFAULT_SCALES):
@@ -132,6 +158,10 @@ class GraspObject:
     ) -> GraspObject:
         """The object of a given material and shape; validates (``ValueError`` naming the bad property). Its mass is
         ``mass_kg``, else a solid sphere's of radius ``1/kappa_obj`` (:func:`object_mass_kg`)."""
+        if all(type(a) in _SCALARS for a in (shear_modulus_kpa, thickness_mm, curvature_per_m, density_kg_m3,
+                                             failure_strain)) and (mass_kg is None or type(mass_kg) in _SCALARS):
+            return cls._of(_material_fields(shear_modulus_kpa, thickness_mm, curvature_per_m, density_kg_m3,
+                                            failure_strain, scales, mass_kg))
         _check_positive("density_kg_m3", density_kg_m3)
         _check_positive("failure_strain", failure_strain)
         args = (shear_modulus_kpa, thickness_mm, curvature_per_m, density_kg_m3, failure_strain)
@@ -167,6 +197,15 @@ class GraspObject:
         )
 
     @classmethod
+    def _of(cls, fields: dict[str, Any]) -> GraspObject:
+        """The object of ``fields`` (every field, by name, already checked: :func:`_material_fields`), without the
+        frozen dataclass's ``__init__``, which sets each field through ``object.__setattr__`` (about 2 us of a reset
+        for eleven fields); the same object (``GraspObject`` has no ``__post_init__``)."""
+        obj = object.__new__(cls)
+        obj.__dict__.update(fields)
+        return obj
+
+    @classmethod
     def from_stiffness(
         cls,
         stiffness,
@@ -183,6 +222,41 @@ class GraspObject:
         # Keep the requested k~ exactly (the round trip through mu_obj may differ in the last bit).
         k = np.broadcast_to(np.asarray(stiffness, dtype=float), np.shape(obj.stiffness))
         return dataclasses.replace(obj, stiffness=_as(k.copy()))
+
+
+def _material_fields(shear_modulus_kpa, thickness_mm, curvature_per_m, density_kg_m3, failure_strain, scales,
+                     mass_kg=None) -> dict[str, float]:
+    """The fields of :meth:`GraspObject.from_material` for one object of Python (or numpy scalar) numbers: the same
+    checks in the same order, with the same messages, and the same bits, in float arithmetic (eq. 3.2 is
+    :func:`~pneunet_env.physics.units.object_stiffness_from_material` on floats in both paths; the rest is ``+ - * /``,
+    which rounds alike on floats and in numpy). The scalar path of ``from_material``: about 3 us, not 100."""
+    _check_positive_one("density_kg_m3", density_kg_m3)
+    _check_positive_one("failure_strain", failure_strain)
+    mu, H, kap = float(shear_modulus_kpa), float(thickness_mm), float(curvature_per_m)
+    rho, eps = float(density_kg_m3), float(failure_strain)
+    k = object_stiffness_from_material(mu, H, kap, scales)
+    failure_stress = 3.0 * eps * mu  # a float product overflows to inf, as numpy's does under errstate(over="ignore")
+    if not (math.isfinite(k) and math.isfinite(failure_stress)):
+        raise ValueError(f"object_shear_modulus_kpa={shear_modulus_kpa!r} with object_failure_strain="
+                         f"{failure_strain!r}: the object's stiffness or failure stress (3 eps_f mu_obj) is not a "
+                         "finite number")
+    c = kap * scales.width_mm * 1e-3
+    if c >= math.pi:
+        raise ValueError(f"object curvature_per_m={curvature_per_m!r} gives w kappa_obj >= pi")
+    if mass_kg is None:
+        mass = _mass_one(0, 1e3 / kap, rho, 0.0, 0.0)
+    else:
+        _check_positive_one("mass_kg", mass_kg)
+        mass = float(mass_kg)
+    return dict(shear_modulus_kpa=mu, thickness_mm=H, curvature_per_m=kap, density_kg_m3=rho, failure_strain=eps,
+                stiffness=k, curvature=c, thickness=H / scales.width_mm, failure_stress_kpa=failure_stress,
+                class_id=-1, mass_kg=mass)
+
+
+def _check_positive_one(name, value):
+    """:func:`_check_positive` for one number (a float, an int or a numpy scalar)."""
+    if not (math.isfinite(value) and value > 0.0):
+        raise ValueError(f"object {name} must be finite and > 0, got {value!r}")
 
 
 def _check_positive(name, value):

@@ -10,16 +10,18 @@ solver was measured to converge.
 
 from __future__ import annotations
 
+import bisect
 import dataclasses
+import functools
 import warnings
 from collections.abc import Mapping
-from typing import Any, NamedTuple
+from typing import Any, NamedTuple, NoReturn
 
 import numpy as np
 
 from pneunet_env.catalogue import class_table
 from pneunet_env.config import LOG_UNIFORM_FIELDS, RANGE_FIELDS, EnvConfig
-from pneunet_env.objects import GraspObject, object_mass_kg
+from pneunet_env.objects import SHAPES, GraspObject, _mass_one, _material_fields, object_mass_kg
 from pneunet_env.physics.contact import CONVERGED_CONTACT_RATIO, contact_ratio, winkler_stiffness
 from pneunet_env.physics.params import MIN_OBJECT_CURVATURE
 
@@ -72,8 +74,10 @@ def sample_object(
     Raises:
         ValueError: an unknown pin key, conflicting pins, or an invalid value (named).
     """
-    shape: tuple[int, ...] = () if size is None else tuple(np.atleast_1d(size).astype(int))
-    return object_from_uniforms(rng.random((draw_count(config),) + shape), config, pinned, batch=size is not None)
+    if size is None:  # one object (a reset's): its floats straight to the scalar path
+        return _one_object(rng.random(draw_count(config)).tolist(), config, _checked_pins(pinned))
+    shape: tuple[int, ...] = tuple(np.atleast_1d(size).astype(int))
+    return object_from_uniforms(rng.random((draw_count(config),) + shape), config, pinned, batch=True)
 
 
 CATALOGUE_DRAWS = ("class", "object_shear_modulus_kpa", "radius_mm", "object_thickness_mm", "object_density_kg_m3",
@@ -98,7 +102,36 @@ def draw_count(config: EnvConfig) -> int:
     whose length takes one more), else 5 (``RANGE_FIELDS``)."""
     if not config.objects.from_catalogue:
         return len(RANGE_FIELDS)
-    return len(CATALOGUE_DRAWS) + class_table(config.objects.class_items).has_length
+    return len(CATALOGUE_DRAWS) + _scalar_table(config.objects.class_items).has_length
+
+
+class _ScalarTable(NamedTuple):
+    """A :class:`~pneunet_env.catalogue.ClassTable` as Python floats, for drawing one object without numpy: per
+    class, ``(lo, hi)`` of each property, in :data:`CATALOGUE_DRAWS`'s order after the class."""
+
+    cumulative: list[float]
+    last: int  # the last class code
+    shear_modulus_kpa: list[tuple[float, float]]
+    radius_mm: list[tuple[float, float]]
+    thickness_mm: list[tuple[float, float]]
+    density_kg_m3: list[tuple[float, float]]
+    failure_strain: list[tuple[float, float]]
+    failure_stress_kpa: list[tuple[float, float]]
+    shape: list[int]
+    length_mm: list[tuple[float, float]]
+    has_length: bool
+
+
+@functools.lru_cache(maxsize=32)
+def _scalar_table(class_items: tuple[tuple[str, float], ...]) -> _ScalarTable:
+    tab = class_table(class_items)
+
+    def col(c):
+        return list(zip(c[0].tolist(), c[1].tolist(), strict=True))
+
+    return _ScalarTable(tab.cumulative.tolist(), len(tab.names) - 1, col(tab.shear_modulus_kpa), col(tab.radius_mm),
+                        col(tab.thickness_mm), col(tab.density_kg_m3), col(tab.failure_strain),
+                        col(tab.failure_stress_kpa), tab.shape.tolist(), col(tab.length_mm), tab.has_length)
 
 
 def _log_uniform(lo, hi, x):
@@ -112,8 +145,35 @@ def _log_uniform(lo, hi, x):
     return lo * np.power(hi / lo, x)
 
 
-def _catalogue_values(u: np.ndarray, config: EnvConfig, batch: bool) -> tuple[dict[str, Any], dict[str, Any]]:
-    """The properties of catalogue objects from their uniforms ``u`` (``(7,) + shape``), and their extra fields."""
+def _one_catalogue_values(u: list[float], config: EnvConfig) -> tuple[dict[str, float], int, float, int, float]:
+    """One catalogue object's properties from its uniforms (floats), with its class code, failure stress (kPa), shape
+    code and length (mm): :func:`_catalogue_values` of one object, the same bits (the class by the same comparisons,
+    ``+ - * /`` on floats, the log-uniforms through :func:`_log_uniform`'s ufunc, all three in one call)."""
+    tab = _scalar_table(config.objects.class_items)
+    cid = min(bisect.bisect_right(tab.cumulative, u[0]), tab.last)  # np.searchsorted(..., side="right")
+    (m_lo, m_hi), (d_lo, d_hi), (f_lo, f_hi) = tab.shear_modulus_kpa[cid], tab.density_kg_m3[cid], \
+        tab.failure_stress_kpa[cid]
+    p_mu, p_rho, p_fs = np.power([m_hi / m_lo, d_hi / d_lo, f_hi / f_lo], [u[1], u[4], u[6]]).tolist()
+    mu, rho, fs = m_lo * p_mu, d_lo * p_rho, f_lo * p_fs
+    (r_lo, r_hi), (h_lo, h_hi), (e_lo, e_hi) = tab.radius_mm[cid], tab.thickness_mm[cid], tab.failure_strain[cid]
+    values = {
+        "object_shear_modulus_kpa": mu,
+        "object_curvature_per_m": 1e3 / (r_lo + (r_hi - r_lo) * u[2]),
+        "object_thickness_mm": h_lo + (h_hi - h_lo) * u[3],
+        "object_density_kg_m3": rho,
+        "object_failure_strain": e_lo + (e_hi - e_lo) * u[5],
+    }
+    if tab.has_length:
+        l_lo, l_hi = tab.length_mm[cid]
+        length = l_lo + (l_hi - l_lo) * u[7]
+    else:
+        length = 0.0
+    return values, cid, fs, tab.shape[cid], length
+
+
+def _catalogue_values(u: np.ndarray, config: EnvConfig) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The properties of catalogue objects from their uniforms ``u`` (``(7,) + shape``), and their extra fields, as
+    arrays (one object's: :func:`_one_catalogue_values`)."""
     tab = class_table(config.objects.class_items)
     cid = np.minimum(np.searchsorted(tab.cumulative, u[0], side="right"), len(tab.names) - 1)
 
@@ -137,10 +197,6 @@ def _catalogue_values(u: np.ndarray, config: EnvConfig, batch: bool) -> tuple[di
                           length_mm=length)
     extra = {"failure_stress_kpa": log_uniform(tab.failure_stress_kpa, u[6]), "class_id": cid.astype(np.int64),
              "mass_kg": mass}
-    if not batch:
-        values = {k: float(v) for k, v in values.items()}
-        extra = {"failure_stress_kpa": float(extra["failure_stress_kpa"]), "class_id": int(extra["class_id"]),
-                 "mass_kg": float(mass)}
     return values, extra
 
 
@@ -152,9 +208,10 @@ def object_from_uniforms(
     The pure half of :func:`sample_object` (which is ``object_from_uniforms(rng.random((5,) + shape), ...)``):
     a batched environment draws ``u`` from each sub-environment's own stream and maps them here.
     ``batch=None`` infers it from ``u.ndim``; ``batch=True`` with ``u.shape == (5,)`` gives 0-d array fields.
-    A batch is computed with array operations (no loop over objects); its values equal the single-object ones bit
-    for bit on one install (both go through :func:`_log_uniform`'s ufunc). Across machines they may differ in the
-    last bit: numpy picks ``power``'s kernel by the CPU's SIMD level (AVX-512 or not).
+    A batch is computed with array operations (no loop over objects); one object (``batch=False``) in float
+    arithmetic (:func:`_one_object`: a reset's draw in a few microseconds). The two give the same bits on one install
+    (both go through :func:`_log_uniform`'s ufunc; ``+ - * /`` round alike on floats and in numpy). Across machines
+    they may differ in the last bit: numpy picks ``power``'s kernel by the CPU's SIMD level (AVX-512 or not).
     """
     u = np.asarray(u, dtype=float)
     n_draws = draw_count(config)
@@ -163,16 +220,81 @@ def object_from_uniforms(
     shape = u.shape[1:]
     if batch is None:
         batch = bool(shape)
-    values: dict[str, Any] = {}
+    pins = _checked_pins(pinned)
+    if not batch:
+        if shape:
+            raise ValueError(f"batch=False draws one object: u must have shape ({n_draws},), got {u.shape}")
+        return _one_object(u.tolist(), config, pins)
     extra: dict[str, Any] | None = None
     if config.objects.from_catalogue:
-        values, extra = _catalogue_values(u, config, batch)
+        values, extra = _catalogue_values(u, config)
     else:
-        for i, name in enumerate(RANGE_FIELDS):
-            lo, hi = getattr(config.objects, name)
-            v = _log_uniform(lo, hi, u[i]) if name in LOG_UNIFORM_FIELDS else lo + (hi - lo) * u[i]
-            values[name] = v if batch else float(v)
+        values = {name: _log_uniform(lo, hi, u[i]) if name in LOG_UNIFORM_FIELDS else lo + (hi - lo) * u[i]
+                  for i, (name, (lo, hi)) in enumerate(_ranges(config))}
+    _apply_pins(values, pins, config, shape)
+    common = _material_args(values, config)
+    try:
+        if "object_stiffness" in pins:
+            obj = _batch_object(None, _pin("object_stiffness", pins["object_stiffness"], shape, True), **common)
+        else:
+            obj = _batch_object(values["object_shear_modulus_kpa"], None, **common)
+    except ValueError as exc:
+        _raise_naming_pins(exc, pins)
+    if extra is None:
+        return _with_shape(obj, config)
+    if pins:  # a pinned size or density: the class's shape, the pinned numbers
+        extra["mass_kg"] = np.asarray(object_mass_kg(
+            class_table(config.objects.class_items).shape[extra["class_id"]], 1e3 / np.asarray(obj.curvature_per_m),
+            obj.density_kg_m3, length_mm=_drawn_length(u, config, extra["class_id"])), dtype=float)
+    return dataclasses.replace(obj, **extra)
+
+
+def _one_object(u: list[float], config: EnvConfig, pins: dict[str, Any]) -> GraspObject:
+    """:func:`object_from_uniforms` of one object, from its uniforms as floats: the same numbers, checks and messages
+    as the batch path, in float arithmetic (no numpy but :func:`_log_uniform`'s ufunc, one call for the object)."""
+    catalogue = config.objects.from_catalogue
+    if catalogue:
+        values, cid, failure_stress, code, length = _one_catalogue_values(u, config)
+    else:
+        ranges = _ranges(config)
+        values = {name: lo + (hi - lo) * x for (name, (lo, hi)), x in zip(ranges, u, strict=True)}
+        logs = [i for i, (name, _) in enumerate(ranges) if name in LOG_UNIFORM_FIELDS]
+        powers = np.power([ranges[i][1][1] / ranges[i][1][0] for i in logs], [u[i] for i in logs]).tolist()
+        for i, p in zip(logs, powers, strict=True):
+            name, (lo, _) = ranges[i]
+            values[name] = lo * p  # _log_uniform: lo (hi/lo)^x
+    if pins:
+        _apply_pins(values, pins, config, None)
+    try:
+        if "object_stiffness" in pins:
+            obj = GraspObject.from_stiffness(_pin("object_stiffness", pins["object_stiffness"], ()),
+                                             **_material_args(values, config))
+            fields = dataclasses.asdict(obj)
+        else:
+            fields = _material_fields(values["object_shear_modulus_kpa"], values["object_thickness_mm"],
+                                      values["object_curvature_per_m"], values["object_density_kg_m3"],
+                                      values["object_failure_strain"], config.scales)
+    except ValueError as exc:
+        _raise_naming_pins(exc, pins)
+    if catalogue:  # the class's own failure stress, and the mass of its shape
+        fields["failure_stress_kpa"], fields["class_id"] = failure_stress, cid
+        fields["mass_kg"] = _mass_one(code, 1e3 / fields["curvature_per_m"], fields["density_kg_m3"], 0.0, length)
+    elif config.objects.shape != "sphere":
+        fields["mass_kg"] = _mass_one(SHAPES.index(config.objects.shape), 1e3 / fields["curvature_per_m"],
+                                      fields["density_kg_m3"], fields["thickness_mm"], float(_length_mm(config)))
+    return GraspObject._of(fields)
+
+
+def _ranges(config: EnvConfig) -> tuple[tuple[str, tuple[float, float]], ...]:
+    """``(name, (lo, hi))`` of each of :data:`~pneunet_env.config.RANGE_FIELDS`, in its order."""
+    return tuple((name, getattr(config.objects, name)) for name in RANGE_FIELDS)
+
+
+def _checked_pins(pinned: Mapping[str, Any] | None) -> dict[str, Any]:
+    """The pins given (``None`` values dropped); ``ValueError`` for an unknown key or two that conflict."""
     pins = {k: v for k, v in (pinned or {}).items() if v is not None}
+    if not pins:
+        return pins
     unknown = sorted(set(pins) - set(PIN_KEYS))
     if unknown:
         raise ValueError(f"unknown reset option(s) {unknown}; valid: {list(PIN_KEYS)}")
@@ -180,46 +302,38 @@ def object_from_uniforms(
         raise ValueError("reset options 'object_stiffness' and 'object_shear_modulus_kpa' conflict: pin one")
     if "object_curvature" in pins and "object_curvature_per_m" in pins:
         raise ValueError("reset options 'object_curvature' and 'object_curvature_per_m' conflict: pin one")
+    return pins
+
+
+def _apply_pins(values: dict[str, Any], pins: dict[str, Any], config: EnvConfig, shape: tuple[int, ...] | None):
+    """Replace the drawn ``values`` by the pinned ones (``shape``: the batch's, ``None`` for one object: floats)."""
+    batch = shape is not None
     for key in ("object_shear_modulus_kpa", "object_thickness_mm", "object_curvature_per_m",
                 "object_density_kg_m3", "object_failure_strain"):
         if key in pins:
-            values[key] = _pin(key, pins[key], shape, batch)
+            values[key] = _pin(key, pins[key], shape or (), batch)
     if "object_curvature" in pins:
-        values["object_curvature_per_m"] = _pin("object_curvature", pins["object_curvature"], shape, batch) / (
+        values["object_curvature_per_m"] = _pin("object_curvature", pins["object_curvature"], shape or (), batch) / (
             config.actuator.width_mm * 1e-3
         )
-    common = dict(
+
+
+def _material_args(values: dict[str, Any], config: EnvConfig) -> dict[str, Any]:
+    """The keyword arguments, but the modulus or stiffness, of ``GraspObject.from_material`` (or its batch twin)."""
+    return dict(
         thickness_mm=values["object_thickness_mm"],
         curvature_per_m=values["object_curvature_per_m"],
         density_kg_m3=values["object_density_kg_m3"],
         failure_strain=values["object_failure_strain"],
         scales=config.scales,
     )
-    try:
-        if not batch:
-            if "object_stiffness" in pins:
-                obj = GraspObject.from_stiffness(_pin("object_stiffness", pins["object_stiffness"], shape), **common)
-            else:
-                obj = GraspObject.from_material(values["object_shear_modulus_kpa"], **common)
-        elif "object_stiffness" in pins:
-            obj = _batch_object(None, _pin("object_stiffness", pins["object_stiffness"], shape, batch), **common)
-        else:
-            obj = _batch_object(values["object_shear_modulus_kpa"], None, **common)
-    except ValueError as exc:
-        if pins and not str(exc).startswith("reset option"):  # a pin that does not fit the drawn object: name it
-            raise ValueError(f"reset option(s) {sorted(pins)}: {exc}") from None
-        raise
-    if extra is None:
-        return _with_shape(obj, config)
-    if pins:  # a pinned size or density: the class's shape, the pinned numbers
-        extra["mass_kg"] = _as_batch(object_mass_kg(
-            class_table(config.objects.class_items).shape[extra["class_id"]], 1e3 / np.asarray(obj.curvature_per_m),
-            obj.density_kg_m3, length_mm=_drawn_length(u, config, extra["class_id"])), batch)
-    return dataclasses.replace(obj, **extra)
 
 
-def _as_batch(x, batch: bool):
-    return np.asarray(x, dtype=float) if batch else float(x)
+def _raise_naming_pins(exc: ValueError, pins: dict[str, Any]) -> NoReturn:
+    """Raise ``exc``, naming the pins when there are some (a pin that does not fit the drawn object)."""
+    if pins and not str(exc).startswith("reset option"):
+        raise ValueError(f"reset option(s) {sorted(pins)}: {exc}") from None
+    raise exc
 
 
 def _drawn_length(u: np.ndarray, config: EnvConfig, cid) -> Any:
@@ -235,10 +349,15 @@ def _with_shape(obj: GraspObject, config: EnvConfig) -> GraspObject:
     oc = config.objects
     if oc.shape == "sphere":
         return obj
-    length = oc.object_length_mm if oc.object_length_mm is not None else config.actuator.finger_width_mm
     mass = object_mass_kg(oc.shape, 1e3 / np.asarray(obj.curvature_per_m), obj.density_kg_m3, obj.thickness_mm,
-                          length)
+                          _length_mm(config))
     return dataclasses.replace(obj, mass_kg=mass)
+
+
+def _length_mm(config: EnvConfig):
+    """The length (mm) of an object drawn from ranges: ``objects.object_length_mm``, else the finger's width."""
+    oc = config.objects
+    return oc.object_length_mm if oc.object_length_mm is not None else config.actuator.finger_width_mm
 
 
 def _first_bad(name: str, value: np.ndarray, bad: np.ndarray, rule: str) -> None:
@@ -372,7 +491,9 @@ def contact_length_mm(obj: GraspObject, params: Any):
     ``grip_faces`` fingers, ``2 pi R / grip_faces`` (half of it each for two fingers: they cannot wrap more)."""
     wrap = 2e3 * np.pi / (obj.curvature_per_m * params.grip_faces)
     # a batch: numpy arrays or torch tensors alike (both have clip(max=...))
-    return wrap.clip(max=params.finger_length_mm) if np.ndim(wrap) else min(params.finger_length_mm, float(wrap))
+    if isinstance(wrap, float) or not np.ndim(wrap):  # one object (a float first: no numpy call on a reset's path)
+        return min(params.finger_length_mm, float(wrap))
+    return wrap.clip(max=params.finger_length_mm)
 
 
 def warn_if_beyond_convergence(obj: GraspObject, warned: bool = False) -> bool:
@@ -380,7 +501,10 @@ def warn_if_beyond_convergence(obj: GraspObject, warned: bool = False) -> bool:
     was measured to converge (:data:`pneunet_env.physics.contact.CONVERGED_CONTACT_RATIO`). Returns the flag."""
     if warned:
         return True
-    ratio = np.max(contact_ratio(np.asarray(obj.stiffness), np.asarray(obj.curvature)))
+    if type(obj.stiffness) is float:  # one object: the same 0-d power as a batch's element, without the reduction
+        ratio = contact_ratio(obj.stiffness, np.asarray(obj.curvature))
+    else:
+        ratio = np.max(contact_ratio(np.asarray(obj.stiffness), np.asarray(obj.curvature)))
     if ratio > CONVERGED_CONTACT_RATIO:
         warnings.warn(
             f"object with k~/(w kappa_obj)^4 = {ratio:.3g} beyond {CONVERGED_CONTACT_RATIO:g}, the largest at which "

@@ -7,6 +7,10 @@ What it measures (all in one process, one after the other, on whatever machine r
   up front from the action space, each step timed alone (``time.perf_counter``), resets outside the timing;
   the two are measured in alternating rounds so that drifts of the machine hit both; each env is also timed
   unwrapped (``env.unwrapped.step``). Target: ratio <= 0.8 (issue 23's; it was 2).
+* **Single env with its resets.** A user's loop, steps and a reset at each episode's end, each timed alone: the
+  env's time per env-step with its resets, under random actions and under the best blind ramp, against CartPole-v1's
+  with its resets, and each env's median reset, unseeded and seeded (:mod:`pneunet_env.bench.episodes`). Target
+  (issue 36): random <= 1.0x CartPole-v1, the reset under 50 us.
 * **Vector env.** Env-steps per second (``N`` times steps over the wall time of the step loop, auto-resets
   included) of ``gym.make_vec("PneuNetGrasp-v1", num_envs=N)`` (``PneuNetGraspVectorEnv``)
   and of ``gym.make_vec("CartPole-v1", num_envs=N)`` (Gymnasium's ``CartPoleVectorEnv``) at N = 1, 64,
@@ -40,6 +44,7 @@ from typing import Any
 import numpy as np
 
 from pneunet_env import arguments as checks
+from pneunet_env.bench import episodes
 from pneunet_env.bench.machine import load_average, machine
 from pneunet_env.files import atomic_write_json, save_figure
 from pneunet_env.progress import add_progress_argument
@@ -57,6 +62,7 @@ TARGETS = {
     "vector_ratio_at_16384_min": {"random": 0.15, "ramp": 0.33},
     "state_bytes_per_env_max": 1024.0,
     "gradient_norm_max": 1e-10,
+    "single_with_resets": episodes.TARGETS,
 }
 """The targets printed next to the figures (never asserted): issue 4's, and issue 23's single-env ratio (0.8x
 CartPole-v1's step, was 2x) and vector ratios to CartPoleVectorEnv at N = 16,384."""
@@ -482,9 +488,13 @@ def run_benchmark(quick: bool = False, progress: bool | None = None, backend: st
     t_start = time.perf_counter()
     load_start = load_average()
     acc = _Accuracy()
-    bar = progress_bar(total=3 + len(num_envs), desc="bench speed", unit="part", enabled=progress)
+    bar = progress_bar(total=4 + len(num_envs), desc="bench speed", unit="part", enabled=progress)
     bar.set_description_str("single env vs CartPole")
     single = bench_single(steps=4000 if quick else 40000, rounds=4 if quick else 10, seed=seed, acc=acc)
+    bar.update(1)
+    bar.set_description_str("single env with its resets vs CartPole")
+    with_resets = episodes.bench_single_with_resets(steps=3000 if quick else 30000, rounds=3 if quick else 10,
+                                                    resets=300 if quick else 3000, ramp=ramp_policy(), seed=seed)
     bar.update(1)
     bar.set_description_str("vector env vs CartPoleVectorEnv")
     vector = bench_vector(num_envs, env_steps=150_000 if quick else 3_000_000, min_steps=5 if quick else 50,
@@ -501,6 +511,7 @@ def run_benchmark(quick: bool = False, progress: bool | None = None, backend: st
         "backend": backend if backend != "auto" else ("numba" if HAVE_NUMBA else "numpy"),
         "machine": machine(),
         "single_env": single,
+        "single_env_with_resets": with_resets,
         "vector_env": vector,
         "solves": solves,
         "memory": memory,
@@ -536,6 +547,7 @@ def format_table(res: dict[str, Any]) -> str:
         *(f"  {k:<22}{s['median_step_s'][k] * 1e6:>10.2f} us   unwrapped "
           f"{s.get('median_unwrapped_step_s', {}).get(k, math.nan) * 1e6:.2f} us" for k in s["median_step_s"]),
         f"  {'ratio':<22}{s['ratio']:>10.2f} x    (target <= {TARGETS['single_step_ratio_max']:g})",
+        *(["", *episodes.format_lines(res["single_env_with_resets"])] if "single_env_with_resets" in res else []),
         "",
         "vector env: env-steps/s (gym.make_vec); workloads: random actions, and the best blind ramp "
         f"({RAMP_TARGET_KPA:g} kPa over {RAMP_STEPS} steps, then held); CartPole: random actions",

@@ -92,6 +92,11 @@ class SingleGraspEnv(gym.Env):
     def _after_reset(self, obj: GraspObject, options: dict[str, Any] | None) -> None:
         """Keep what the subclass needs of the new episode (its state is ``self.state``); nothing by default."""
 
+    def _reset_state(self, obj: GraspObject) -> task.EnvState:
+        """The state at ``reset`` with the object ``obj``: :func:`pneunet_env.task.reset_state` with the env's params
+        and contact (a subclass may compute the same state faster)."""
+        return task.reset_state(obj, self._params, self._contact)
+
     def _step_state(self, state: task.EnvState, action: float) -> task.Step:
         """One step from ``state``: :func:`pneunet_env.task.step` with the env's params and contact (a subclass may
         compute the same step faster)."""
@@ -138,7 +143,7 @@ class SingleGraspEnv(gym.Env):
             raise ValueError(f"options must be a dict of object properties to pin, got {options!r}")
         obj = task.sample_object(self.np_random, self.config, pinned=options)
         self._accept_object(obj)
-        self._state = state = task.reset_state(obj, self._params, self._contact)
+        self._state = state = self._reset_state(obj)
         self._after_reset(obj, options)
         p = self._params
         obs = task.observation(state.command, state.eq.volume_change, p.task, p.volume_scale)

@@ -18,9 +18,14 @@ from gymnasium import spaces
 from pneunet_env import fused, task
 from pneunet_env.config import EnvConfig
 from pneunet_env.envs.base import SingleGraspEnv
+from pneunet_env.info import lean_info
 from pneunet_env.physics.params import check_object
+from pneunet_env.physics.solver import Solve, equilibrium, step_state
 
 __all__ = ["PneuNetGraspEnv", "observation_space"]
+
+_RESET_KEYS = tuple(k for k in task.FULL_KEYS if k in task.LEAN_KEYS or k in task.OBJECT_KEYS)
+"""The keys of a lean reset info, in :func:`pneunet_env.task.build_info`'s order (the table's)."""
 
 
 class PneuNetGraspEnv(SingleGraspEnv):
@@ -209,6 +214,7 @@ class PneuNetGraspEnv(SingleGraspEnv):
         self._single = fused.SingleStep(self._params) if fused.HAVE_FUSED else None
         cls = type(self)
         self._own_step = cls._step_state is PneuNetGraspEnv._step_state and cls._info is PneuNetGraspEnv._info
+        self._rest: Solve | None = None  # the solve at rest (see _rest_contact)
         self._class_names = task.class_names(self.config)
         self.observation_space = observation_space(self.config)
         self._warned = False
@@ -244,6 +250,22 @@ class PneuNetGraspEnv(SingleGraspEnv):
         return new
 
     # ---- the episode's object ----------------------------------------------------------------------
+    def _reset_state(self, obj) -> task.EnvState:
+        return task.reset_state(obj, self._params, self._rest_contact)
+
+    def _rest_contact(self, kappa, side_strain, p0, p1, obj, params: task.EnvParams):
+        """:func:`pneunet_env.task.newton_contact` as :func:`~pneunet_env.task.reset_state` calls it: from rest at zero
+        pressure to zero pressure. That solve touches no object (``kappa~ = 0 < w kappa_obj``: eq. 3.1's contact and
+        its derivatives are zero there), so its numbers are the same for every object: solved at the first reset, its
+        record built for each object (a test checks the solve against objects from the softest to the stiffest). A
+        subclass's own contact is asked every time."""
+        if kappa != 0.0 or side_strain != 0.0 or p0 != 0.0 or p1 != 0.0 or self._contact is not task.newton_contact:
+            return self._contact(kappa, side_strain, p0, p1, obj, params)
+        if self._rest is None:
+            self._rest = step_state(kappa, side_strain, p0, p1, params.actuator, obj.stiffness, obj.curvature,
+                                    params.solver)
+        return equilibrium(p1, self._rest, params.actuator.chamber_height, obj.stiffness, obj.curvature)
+
     def _accept_object(self, obj) -> None:
         check_object(obj.stiffness, obj.curvature)
         self._warned = task.warn_if_beyond_convergence(obj, self._warned)
@@ -257,7 +279,22 @@ class PneuNetGraspEnv(SingleGraspEnv):
         self._render_name = "" if pinned_material or obj.class_id < 0 else self._static_info["object_class"]
 
     def _info(self, res: task.Step | None) -> dict[str, Any]:
+        if res is None and self.info_level == "lean" and self._own_step:
+            return self._reset_info()
         return task.build_info(self._state, self._params.task, res, self.info_level, self._static_info)
+
+    def _reset_info(self) -> dict[str, Any]:
+        """The lean reset info, as :func:`~pneunet_env.task.build_info` gives it (the same keys in the same order, the
+        same values of the same types: a test keeps them equal), from the state's numbers and the object's constants
+        (``_static_info``): :func:`pneunet_env.info.lean_info`, the lean step info's own line, with the flags of a
+        state before any step (no step taken, nothing clipped, failed, held, damaged or dropped yet)."""
+        state, tp = self._state, self._params.task
+        eq, t = state.eq, state.task
+        lean = lean_info(eq.pressure, eq.curvature, eq.contact_force, eq.indentation, eq.in_contact, t.step, t.damaged,
+                         t.dropped, eq.snapped, eq.converged, False, False, False, False, False, False, False,
+                         tp.shear_modulus_kpa, tp.width_mm)
+        lean.update(self._static_info)
+        return {k: lean[k] for k in _RESET_KEYS}
 
     # ---- rendering ---------------------------------------------------------------------------------
     def render(self):

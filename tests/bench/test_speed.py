@@ -32,7 +32,8 @@ def test_quick_run_prints_its_table_and_writes_json_and_png(quick_run):
     rc, out, text, _ = quick_run
     assert rc == 0
     for row in ("single env", "PneuNetGrasp-v1", "CartPole-v1", "ratio", "vector env", "CartPoleVectorEnv",
-                "solve_equilibrium", "memory at N = 16,384", "accuracy over"):
+                "solve_equilibrium", "memory at N = 16,384", "accuracy over", "single env with its resets",
+                "PneuNetGrasp-v1 random", "PneuNetGrasp-v1 ramp", "CartPole-v1 random"):
         assert row in text, row
     for n in speed.NUM_ENVS:
         assert any(line.split()[:1] == [str(n)] for line in text.splitlines()), n
@@ -48,6 +49,11 @@ def test_json_holds_every_figure(quick_run):
         assert 0.0 < single["median_step_s"][name] < 1.0
     assert single["ratio"] == pytest.approx(single["median_step_s"]["PneuNetGrasp-v1"]
                                             / single["median_step_s"]["CartPole-v1"])
+    loop = res["single_env_with_resets"]  # the single env with its resets (issue 36): reported, never asserted
+    cart = loop["per_step_s"]["CartPole-v1 random"]
+    for workload in ("random", "ramp"):
+        assert loop["ratio"][workload] == pytest.approx(loop["per_step_s"][f"PneuNetGrasp-v1 {workload}"] / cart)
+    assert all(0.0 < t < 1.0 for t in loop["median_seeded_reset_s"].values())
     assert [r["num_envs"] for r in res["vector_env"]] == list(speed.NUM_ENVS)
     for r in res["vector_env"]:
         cp = r["steps_per_s"]["CartPole-v1"]
