@@ -115,7 +115,7 @@ def test_a_design_identical_to_table1_does_not_hide_its_line(tmp_path):
 def test_only_a_design_with_table1s_parameters_is_called_table1():
     result = _result()
     table1 = next(row for row in result["designs"] if row["label"] == "table1")
-    assert [outputs._is_table1(row, table1) for row in result["designs"]] == [False, False, False, False]
+    assert [outputs._is_table1(row, table1) for row in result["designs"]] == [False] * len(result["designs"])
     same = _with_table1_as_best(result)
     assert [outputs._is_table1(row, same["designs"][0]) for row in same["designs"]] == [False, True]
     assert not outputs._is_table1(table1, None)

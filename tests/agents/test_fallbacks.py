@@ -72,8 +72,8 @@ def test_shipped_schedules_in_kpa():
         got[path.stem if path else "default"] = round(_kpa(make_policy("best-ramp", cfg, config_path=path), cfg), 6)
     paper = load_config(None, **PAPER_TASK)
     got["paper"] = round(_kpa(make_policy("best-ramp", paper), paper), 6)
-    assert got == {"default": 35.1, "paper": 42.0, "designed-catalogue_uniform": 5.5176, "designed-kitchen": 7.2504,
-                   "designed-lab_bench": 6.0648}
+    assert got == {"default": 35.1, "paper": 42.0, "designed-catalogue_uniform": 134.904, "designed-kitchen": 122.64,
+                   "designed-lab_bench": 54.8}
 
 
 # ------------------------------------------------------------------------------------ (c) a schedule is defined in kPa
@@ -85,8 +85,8 @@ def test_a_new_maximum_never_moves_a_tuned_schedule():
     assert _kpa(ramp, cfg) == pytest.approx(35.1, rel=1e-12) and "35.1 kPa over 20 steps" in ramp.label
     assert make_policy("rigid", cfg).policy.target * default_jaw_travel_mm(cfg) == pytest.approx(7.832)
     designed = ENV_CONFIGS / "designed-kitchen.yaml"
-    cfg = load_config(designed, max_pressure_kpa=12.0)
-    assert _kpa(make_policy("best-ramp", cfg, config_path=designed), cfg) == pytest.approx(7.2504, rel=1e-9)
+    cfg = load_config(designed, max_pressure_kpa=150.0)
+    assert _kpa(make_policy("best-ramp", cfg, config_path=designed), cfg) == pytest.approx(122.64, rel=1e-9)
 
 
 def test_a_schedule_above_the_new_maximum_is_refused_not_clipped():
@@ -186,13 +186,15 @@ def test_a_designed_config_without_its_ramp_is_refused_not_run_with_another_actu
     # with its ramp beside it again, it runs the design's
     shutil.copyfile(ENV_CONFIGS / "designed-kitchen.best_ramp.json", tmp_path / "designed-kitchen.best_ramp.json")
     cfg = load_config(copy)
-    assert _kpa(make_policy("best-ramp", cfg, config_path=copy), cfg) == pytest.approx(7.2504)
+    assert _kpa(make_policy("best-ramp", cfg, config_path=copy), cfg) == pytest.approx(122.64)
     # the jaw's schedule does not depend on the pneu-net: the package's, as before
     (tmp_path / "designed-kitchen.best_ramp.json").unlink()
     assert "7.83 mm" in make_policy("rigid", cfg, config_path=copy).label
-    # the package's schedule named explicitly runs (and the kPa rule still applies: 35.1 kPa > 9.12 kPa)
-    with pytest.raises(ValueError, match="above max_pressure_kpa = 9.12"):
-        make_policy(f"best-ramp:path={BEST_RAMP_PATH}", cfg, config_path=copy)
+    # the package's schedule named explicitly runs, in its kPa (and the kPa rule still applies: 35.1 kPa > 30 kPa)
+    assert _kpa(make_policy(f"best-ramp:path={BEST_RAMP_PATH}", cfg, config_path=copy), cfg) == pytest.approx(35.1)
+    low = load_config(copy, max_pressure_kpa=30.0)
+    with pytest.raises(ValueError, match="above max_pressure_kpa = 30"):
+        make_policy(f"best-ramp:path={BEST_RAMP_PATH}", low, config_path=copy)
 
 
 def test_the_demo_names_the_missing_ramp_in_one_line(tmp_path, capsys):
