@@ -84,7 +84,7 @@ class ObjectClass:
     thickness_mm: Range
     in_annulus_model: bool
     reason: str
-    sources: tuple[str, ...]
+    sources: tuple[str, ...]  # empty: an unsourced class of a user's catalogue
     shape: str = "sphere"
     length_mm: Range | None = None
 
@@ -156,22 +156,24 @@ def _text(name: str, field: str, value: Any) -> str:
     return value.strip()
 
 
-def _object_class(name: Any, entry: Any) -> ObjectClass:
+def _object_class(name: Any, entry: Any, sourced: bool = True) -> ObjectClass:
     if not isinstance(name, str) or not name:
         raise ValueError(f"object class name must be a non-empty string, got {name!r}")
     if not isinstance(entry, dict):
         raise ValueError(f"object class {name!r}: must be a mapping of fields, got {type(entry).__name__}")
     for field in _REQUIRED:
-        if field not in entry:
+        if field not in entry and (sourced or field != "sources"):
             raise ValueError(f"object class {name!r}: field {field!r} is missing")
     ranges = {field: _range(name, field, entry[field]) for field in RANGE_FIELDS}
     in_model = entry["in_annulus_model"]
     if not isinstance(in_model, bool):
         raise ValueError(f"object class {name!r}: field 'in_annulus_model' must be true or false, got {in_model!r}")
-    sources = entry["sources"]
+    sources = entry.get("sources", [])
     if isinstance(sources, str):
         sources = [sources]
-    if not isinstance(sources, (list, tuple)) or not sources:
+    if not sourced and isinstance(sources, (list, tuple)) and not sources:
+        sources = []  # a user's catalogue: a class without sources is read, and reported "unsourced"
+    elif not isinstance(sources, (list, tuple)) or not sources:
         raise ValueError(f"object class {name!r}: field 'sources' must list at least one source, got {sources!r}")
     for s in sources:
         if not isinstance(s, str) or not s.strip():
@@ -210,11 +212,14 @@ def _object_class(name: Any, entry: Any) -> ObjectClass:
     )
 
 
-def _classes(raw: dict[str, Any], label: str) -> dict[str, ObjectClass]:
+def _classes(raw: dict[str, Any], label: str, sourced: bool = True) -> dict[str, ObjectClass]:
     entries = raw.get("classes")
     if not isinstance(entries, dict) or not entries:
         raise ValueError(f"{label}: 'classes' must be a non-empty mapping of class name -> fields")
-    return {name: _object_class(name, entry) for name, entry in entries.items()}
+    try:
+        return {name: _object_class(name, entry, sourced) for name, entry in entries.items()}
+    except ValueError as exc:
+        raise ValueError(f"{label}: {exc}" if not sourced else str(exc)) from None
 
 
 def _use_case(name: Any, entry: Any, classes: dict[str, ObjectClass]) -> UseCase:
@@ -289,7 +294,7 @@ def load_catalogue(path: str | Path | None = None) -> dict[str, ObjectClass]:
     if path is None:
         return dict(_packaged_catalogue())
     raw, label = _load_raw(path)
-    classes = _classes(raw, label)
+    classes = _classes(raw, label, sourced=False)
     _use_cases(raw, label, classes)  # validated with the classes: a bad use case is a bad file
     return classes
 
@@ -299,7 +304,7 @@ def load_use_cases(path: str | Path | None = None) -> dict[str, UseCase]:
     if path is None:
         return dict(_packaged_use_cases())
     raw, label = _load_raw(path)
-    return _use_cases(raw, label, _classes(raw, label))[0]
+    return _use_cases(raw, label, _classes(raw, label, sourced=False))[0]
 
 
 @functools.lru_cache(maxsize=1)
@@ -311,7 +316,7 @@ def _packaged_use_cases() -> dict[str, UseCase]:
 def default_use_case(path: str | Path | None = None) -> str:
     """The name of the default use case (``use_cases.default`` in the file)."""
     raw, label = _load_raw(path)
-    return _use_cases(raw, label, _classes(raw, label))[1]
+    return _use_cases(raw, label, _classes(raw, label, sourced=path is None))[1]
 
 
 def use_case_weights(name: str | None = None, path: str | Path | None = None) -> dict[str, float]:
@@ -322,7 +327,7 @@ def use_case_weights(name: str | None = None, path: str | Path | None = None) ->
     if path is None:  # the packaged file does not change: read and validate it once
         return dict(_packaged_weights(name))
     raw, label = _load_raw(path)
-    cases, default = _use_cases(raw, label, _classes(raw, label))
+    cases, default = _use_cases(raw, label, _classes(raw, label, sourced=False))
     key = default if name is None else name
     if key not in cases:
         raise KeyError(f"no use case {key!r} in {label}; known: {sorted(cases)}")
@@ -390,14 +395,15 @@ class ClassTable:
         return bool(np.any(self.shape != 0))
 
 
-def class_table(weights: tuple[tuple[str, float], ...]) -> ClassTable:
-    """A :class:`ClassTable` for ``((class, weight), ...)`` (validated names, positive total weight)."""
-    return _class_table(tuple(weights))
+def class_table(weights: tuple[tuple[str, float], ...], catalogue: str | None = None) -> ClassTable:
+    """A :class:`ClassTable` for ``((class, weight), ...)`` (validated names, positive total weight) of the packaged
+    catalogue, or of the user's ``catalogue`` file (a path)."""
+    return _class_table(tuple(weights), None if catalogue is None else str(catalogue))
 
 
 @functools.lru_cache(maxsize=32)
-def _class_table(weights: tuple[tuple[str, float], ...]) -> ClassTable:
-    classes = load_catalogue()
+def _class_table(weights: tuple[tuple[str, float], ...], catalogue: str | None = None) -> ClassTable:
+    classes = load_catalogue(catalogue)
     for n, w in weights:
         if not isinstance(n, str) or n not in classes:
             raise ValueError(f"unknown object class {n!r}; known: {sorted(classes)}")

@@ -139,6 +139,9 @@ class ObjectConfig:
         object_failure_strain: ``eps_f``, uniform: the object fails at a stress ``eps_f E_obj = 3 eps_f mu_obj``.
         use_case: a use case of the catalogue (``kitchen``, ``lab_bench``, ...), or ``None``.
         class_weights: ``{class: weight}`` (overrides ``use_case``), or ``None``.
+        catalogue: a path to the user's own catalogue file, in ``pneunet_env/data/objects.yaml``'s format (its classes
+            may lack sources: the outputs then say "unsourced"); ``use_case`` and ``class_weights`` then name its use
+            cases and classes. ``None``: the packaged catalogue.
         shape: the 3D shape of an object drawn from the ranges, which sets its mass
             (:func:`pneunet_env.objects.object_mass_kg`): ``"sphere"`` of radius ``1/kappa_obj``, ``"cylinder"`` or
             ``"ring"`` (eq. 3.2's annulus, the paper's) of height ``object_length_mm``. A catalogue class has its own.
@@ -158,7 +161,15 @@ class ObjectConfig:
             return tuple(self.class_weights.items())
         from pneunet_env.catalogue import use_case_weights
 
-        return tuple(use_case_weights(self.use_case).items())
+        return tuple(use_case_weights(self.use_case, self.catalogue).items())
+
+    @property
+    def table(self):
+        """The :class:`~pneunet_env.catalogue.ClassTable` the objects are drawn from (of :attr:`class_items`, in the
+        packaged catalogue or the user's :attr:`catalogue`)."""
+        from pneunet_env.catalogue import class_table
+
+        return class_table(self.class_items, self.catalogue)
 
     object_shear_modulus_kpa: tuple[float, float] = (0.1, 1500.0)
     object_thickness_mm: tuple[float, float] = (10.0, 10.0)
@@ -169,9 +180,16 @@ class ObjectConfig:
     class_weights: dict[str, float] | None = None
     shape: str = "sphere"
     object_length_mm: float | None = None
+    catalogue: str | None = None
 
     def __post_init__(self) -> None:
         from pneunet_env.objects import SHAPES
+
+        if self.catalogue is not None:
+            if not isinstance(self.catalogue, (str, os.PathLike)) or not str(self.catalogue).strip():
+                raise ConfigTypeError(f"config key 'catalogue' must be a path to a catalogue file or null, got "
+                                      f"{self.catalogue!r}")
+            object.__setattr__(self, "catalogue", str(Path(self.catalogue).expanduser().resolve()))
 
         if self.shape not in SHAPES:
             raise ValueError(f"config key 'shape' must be one of {SHAPES}, got {self.shape!r}")
@@ -191,12 +209,13 @@ class ObjectConfig:
             from pneunet_env.catalogue import class_table, load_use_cases
 
             if self.class_weights is None:
-                cases = load_use_cases()
+                cases = load_use_cases(self.catalogue)
                 if self.use_case not in cases:
-                    raise ValueError(f"config key 'use_case' must be one of {sorted(cases)} or null (the ranges "
+                    where = "" if self.catalogue is None else f" of the catalogue {self.catalogue!r}"
+                    raise ValueError(f"config key 'use_case' must be one of {sorted(cases)}{where} or null (the ranges "
                                      f"below), got {self.use_case!r}")
             try:
-                class_table(self.class_items)
+                class_table(self.class_items, self.catalogue)
             except ValueError as exc:
                 raise ValueError(f"config key 'class_weights': {exc}") from None
         for name in RANGE_FIELDS:
@@ -399,9 +418,7 @@ class EnvConfig:
                                  f"{type(getattr(self, section)).__name__}")
         c_hi = self.objects.object_curvature_per_m[1]
         if self.objects.from_catalogue:  # the smallest object the classes allow
-            from pneunet_env.catalogue import class_table
-
-            c_hi = 1e3 / float(min(class_table(self.objects.class_items).radius_mm[0]))
+            c_hi = 1e3 / float(min(self.objects.table.radius_mm[0]))
         if self.actuator.width_mm * 1e-3 * c_hi >= math.pi:
             source = "the catalogue's classes" if self.objects.from_catalogue else "config key 'object_curvature_per_m'"
             raise ValueError(

@@ -89,7 +89,7 @@ catalogue with a cylinder class draws one more, its length (uniform), last."""
 
 def class_names(config: EnvConfig) -> tuple[str, ...]:
     """The names of the catalogue classes an env draws from, by class code (empty when objects come from ranges)."""
-    return class_table(config.objects.class_items).names if config.objects.from_catalogue else ()
+    return config.objects.table.names if config.objects.from_catalogue else ()
 
 
 def class_name(names: tuple[str, ...], class_id: int) -> str:
@@ -102,7 +102,7 @@ def draw_count(config: EnvConfig) -> int:
     whose length takes one more), else 5 (``RANGE_FIELDS``)."""
     if not config.objects.from_catalogue:
         return len(RANGE_FIELDS)
-    return len(CATALOGUE_DRAWS) + _scalar_table(config.objects.class_items).has_length
+    return len(CATALOGUE_DRAWS) + _scalar_table(config.objects.class_items, config.objects.catalogue).has_length
 
 
 class _ScalarTable(NamedTuple):
@@ -123,8 +123,8 @@ class _ScalarTable(NamedTuple):
 
 
 @functools.lru_cache(maxsize=32)
-def _scalar_table(class_items: tuple[tuple[str, float], ...]) -> _ScalarTable:
-    tab = class_table(class_items)
+def _scalar_table(class_items: tuple[tuple[str, float], ...], catalogue: str | None = None) -> _ScalarTable:
+    tab = class_table(class_items, catalogue)
 
     def col(c):
         return list(zip(c[0].tolist(), c[1].tolist(), strict=True))
@@ -149,7 +149,7 @@ def _one_catalogue_values(u: list[float], config: EnvConfig) -> tuple[dict[str, 
     """One catalogue object's properties from its uniforms (floats), with its class code, failure stress (kPa), shape
     code and length (mm): :func:`_catalogue_values` of one object, the same bits (the class by the same comparisons,
     ``+ - * /`` on floats, the log-uniforms through :func:`_log_uniform`'s ufunc, all three in one call)."""
-    tab = _scalar_table(config.objects.class_items)
+    tab = _scalar_table(config.objects.class_items, config.objects.catalogue)
     cid = min(bisect.bisect_right(tab.cumulative, u[0]), tab.last)  # np.searchsorted(..., side="right")
     (m_lo, m_hi), (d_lo, d_hi), (f_lo, f_hi) = tab.shear_modulus_kpa[cid], tab.density_kg_m3[cid], \
         tab.failure_stress_kpa[cid]
@@ -174,7 +174,7 @@ def _one_catalogue_values(u: list[float], config: EnvConfig) -> tuple[dict[str, 
 def _catalogue_values(u: np.ndarray, config: EnvConfig) -> tuple[dict[str, Any], dict[str, Any]]:
     """The properties of catalogue objects from their uniforms ``u`` (``(7,) + shape``), and their extra fields, as
     arrays (one object's: :func:`_one_catalogue_values`)."""
-    tab = class_table(config.objects.class_items)
+    tab = config.objects.table
     cid = np.minimum(np.searchsorted(tab.cumulative, u[0], side="right"), len(tab.names) - 1)
 
     def uniform(col, x):
@@ -244,7 +244,7 @@ def object_from_uniforms(
         return _with_shape(obj, config)
     if pins:  # a pinned size or density: the class's shape, the pinned numbers
         extra["mass_kg"] = np.asarray(object_mass_kg(
-            class_table(config.objects.class_items).shape[extra["class_id"]], 1e3 / np.asarray(obj.curvature_per_m),
+            config.objects.table.shape[extra["class_id"]], 1e3 / np.asarray(obj.curvature_per_m),
             obj.density_kg_m3, length_mm=_drawn_length(u, config, extra["class_id"])), dtype=float)
     return dataclasses.replace(obj, **extra)
 
@@ -337,7 +337,7 @@ def _raise_naming_pins(exc: ValueError, pins: dict[str, Any]) -> NoReturn:
 
 
 def _drawn_length(u: np.ndarray, config: EnvConfig, cid) -> Any:
-    tab = class_table(config.objects.class_items)
+    tab = config.objects.table
     if not tab.has_length:
         return 0.0
     lo, hi = tab.length_mm[0][cid], tab.length_mm[1][cid]

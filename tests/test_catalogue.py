@@ -269,8 +269,6 @@ BAD_ROWS = {
     "negative value": (_set("density_kg_m3", [-1.0, 1000.0]), ["test_gel", "density_kg_m3", "positive"]),
     "not a pair": (_set("radius_mm", [15.0]), ["test_gel", "radius_mm", "[low, high]"]),
     "not numbers": (_set("radius_mm", ["a", "b"]), ["test_gel", "radius_mm", "[low, high]"]),
-    "missing sources": (_drop("sources"), ["test_gel", "sources", "missing"]),
-    "empty sources": (_set("sources", []), ["test_gel", "sources"]),
     "blank source": (_set("sources", ["  "]), ["test_gel", "sources"]),
     "H >= radius": (_set("thickness_mm", [5.0, 15.0]), ["test_gel", "thickness_mm", "radius"]),
     "non-boolean in_annulus_model": (_set("in_annulus_model", "yes"), ["test_gel", "in_annulus_model"]),
@@ -311,6 +309,19 @@ def test_not_a_mapping_or_not_yaml(tmp_path):
         load_catalogue(path)
 
 
+@pytest.mark.parametrize("mutate", [_drop("sources"), _set("sources", [])], ids=["missing", "empty"])
+def test_a_users_class_without_sources_is_read_as_unsourced_and_a_packaged_one_is_refused(tmp_path, mutate):
+    """A user's catalogue (``--catalogue PATH``) may lack sources: the class is read with ``sources == ()``, which the
+    outputs report as UNSOURCED; the packaged file's rule (every class sourced) is unchanged."""
+    from pneunet_env.catalogue import _classes
+    from pneunet_env.yamlio import load_yaml_file
+
+    path = _write(tmp_path, _bad(mutate))
+    assert load_catalogue(path)["test_gel"].sources == ()
+    with pytest.raises(ValueError, match="test_gel.*sources"):
+        _classes(load_yaml_file(path, "catalogue file"), "packaged")
+
+
 def test_nothing_is_printed(capsys, tmp_path):
     load_catalogue()
     load_use_cases()
@@ -318,7 +329,7 @@ def test_nothing_is_printed(capsys, tmp_path):
     for c in CATALOGUE.values():
         stiffness_range(c)
     with pytest.raises(ValueError):
-        load_catalogue(_write(tmp_path, _bad(_drop("sources"))))
+        load_catalogue(_write(tmp_path, _bad(_set("sources", ["  "]))))
     out, err = capsys.readouterr()
     assert out == "" and err == ""
 

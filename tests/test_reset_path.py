@@ -60,7 +60,8 @@ def test_a_cylinder_class_draws_its_length_alike_in_both_paths(monkeypatch):
     length = np.array([[0.0 if s == 0 else 50.0 + 10 * i for i, s in enumerate(shape)],
                        [0.0 if s == 0 else 80.0 + 10 * i for i, s in enumerate(shape)]])
     cylinders = dataclasses.replace(tab, shape=shape, length_mm=length)
-    monkeypatch.setattr(to, "class_table", lambda items: cylinders)
+    monkeypatch.setattr(to, "class_table", lambda items, catalogue=None: cylinders)  # the scalar path's table
+    monkeypatch.setattr(type(cfg.objects), "table", property(lambda self: cylinders))  # the batch path's
     to._scalar_table.cache_clear()
     try:
         assert task.draw_count(cfg) == 8

@@ -13,10 +13,21 @@ def usage_error(prog: str, message: str) -> None:
     raise SystemExit(2)
 
 
-def parse_overrides(items) -> dict[str, Any]:
+CATALOGUE_HELP = ("your own object catalogue, a YAML file in pneunet_env/data/objects.yaml's format (classes may lack "
+                  "sources: then reported unsourced); --set use_case=NAME picks one of its use cases (default: its "
+                  "default)")
+
+
+def add_catalogue(parser) -> None:
+    """The ``--catalogue PATH`` option of the commands that draw objects (read by :func:`parse_overrides`)."""
+    parser.add_argument("--catalogue", default=None, metavar="PATH", help=CATALOGUE_HELP)
+
+
+def parse_overrides(items, catalogue: str | None = None) -> dict[str, Any]:
     """``["KEY=VALUE", ...]`` -> a dict, each VALUE read as YAML exactly as in a config file
     (:func:`pneunet_env.yamlio.parse_value`: ``30``, ``5e1``, ``[30, 1000]``, ``true``); ``ValueError`` naming the
-    item for a bad value. A key set twice takes its last value."""
+    item for a bad value. A key set twice takes its last value. ``catalogue`` (``--catalogue PATH``) adds the key
+    ``catalogue``, and the file's default use case unless ``use_case`` or ``class_weights`` is set."""
     from pneunet_env.yamlio import parse_value
 
     out: dict[str, Any] = {}
@@ -25,4 +36,10 @@ def parse_overrides(items) -> dict[str, Any]:
         if not eq or not key.strip():
             raise ValueError(f"--set needs KEY=VALUE, got {item!r}")
         out[key.strip()] = parse_value(value, f"--set {item!r}")
+    if catalogue is not None:
+        from pneunet_env.catalogue import default_use_case
+
+        out["catalogue"] = str(catalogue)
+        if "use_case" not in out and "class_weights" not in out:
+            out["use_case"] = default_use_case(catalogue)  # ValueError naming the file if it is not a catalogue
     return out

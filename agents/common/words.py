@@ -34,9 +34,19 @@ def task_description(config: EnvConfig) -> str:
     oc = config.objects
     if oc.from_catalogue:
         weights = ", ".join(f"{n.replace('_', ' ')} {w:.0%}" for n, w in _class_weights(config).items())
+        where, unsourced = "the catalogue's", ""
+        if oc.catalogue is not None:
+            from pathlib import Path
+
+            from pneunet_env.catalogue import load_catalogue
+
+            classes = load_catalogue(oc.catalogue)
+            bare = [n for n in _class_weights(config) if not classes[n].sources]
+            where = f"the catalogue {Path(oc.catalogue).name}'s"
+            unsourced = f"; UNSOURCED: {', '.join(bare)} (no source given for their values)" if bare else ""
         if oc.class_weights is not None:
-            return f"catalogue classes ({weights})"
-        return f"the catalogue's {oc.use_case!r} use case ({weights})"
+            return f"{where.replace('the ', '', 1)} classes ({weights}{unsourced})"
+        return f"{where} {oc.use_case!r} use case ({weights}{unsourced})"
     radius = tuple(1e3 / c for c in oc.object_curvature_per_m[::-1])
     what = "the paper's ring" if is_paper_ring(config) else "objects from ranges"
     return (f"{what}: R = {_fmt_range(np.round(radius, 3), 'mm')}, H = {_fmt_range(oc.object_thickness_mm, 'mm')}, "

@@ -40,9 +40,9 @@ def _weights(text: str | None) -> dict[str, float] | None:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--use-case", default="kitchen",
-                        help="catalogue use case whose objects the design must hold (default kitchen; see "
-                             "docs/env.md)")
+    parser.add_argument("--use-case", default=None,
+                        help="catalogue use case whose objects the design must hold (default: --config's own objects, "
+                             "which are kitchen's without --config; see docs/env.md)")
     parser.add_argument("--class-weights", default=None, metavar="NAME=W,...",
                         help="catalogue class weights instead of a use case, e.g. apple=1,gelatin_gel=1")
     parser.add_argument("--trials", type=int, default=120,
@@ -64,7 +64,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="Optuna's multi-objective sampler (default tpe)")
     parser.add_argument("--bound", action="append", default=[], metavar="KEY=LOW:HIGH",
                         help="narrow a parameter's range (repeatable), e.g. top_thickness_mm=1.5:3")
-    parser.add_argument("--config", default=None, help="base env config YAML (objects, task) the design changes")
+    parser.add_argument("--config", default=None, help="base env config YAML (objects, task) the design changes; "
+                        "its own objects (a use case, class weights or ranges) unless --use-case or --class-weights")
+    parser.add_argument("--catalogue", default=None, metavar="PATH",
+                        help="your own object catalogue (pneunet_env/data/objects.yaml's format; classes may lack "
+                             "sources, then reported unsourced); --use-case names one of its use cases (default: its "
+                             "default)")
     parser.add_argument("--pressure-error-kpa", type=float, default=PRESSURE_ERROR_KPA, metavar="KPA",
                         help="the regulator's error a blind pressure is scored at, either way (default "
                              f"{PRESSURE_ERROR_KPA:g} kPa: 1 %% of a 100 kPa full scale, SMC ITV-series)")
@@ -85,7 +90,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def spec_from_args(args: argparse.Namespace) -> StudySpec:
     """The study's settings from the command line, every value checked before any work."""
     weights = _weights(args.class_weights)
-    out = args.out if args.out is not None else Path("design") / (args.use_case if weights is None else "weights")
+    out = args.out if args.out is not None else Path("design") / (
+        (args.use_case or "default") if weights is None else "weights")
     checks.check_output_dir(out, "--out")  # the default folder too: refused now, not after the study
     most_of = checks.MAX_COUNT
     for flag, value, most in (("--trials", args.trials, most_of), ("--objects", args.objects, most_of),
@@ -101,10 +107,11 @@ def spec_from_args(args: argparse.Namespace) -> StudySpec:
         raise ValueError(f"--export must name a .yaml file, got {str(args.export)!r}")
     if args.worker and args.report:
         raise ValueError("--worker and --report exclude each other")
-    spec = StudySpec(out=out, use_case=args.use_case, class_weights=weights, trials=args.trials, jobs=args.jobs,
-                     storage=args.storage, study_name=args.study_name, seed=args.seed, objects=args.objects,
-                     held_out=args.held_out, sampler=args.sampler, bounds=parse_bounds(args.bound),
-                     config=args.config, top=args.top, pressure_error_kpa=args.pressure_error_kpa)
+    spec = StudySpec(out=out, use_case=args.use_case, catalogue=args.catalogue, class_weights=weights,
+                     trials=args.trials, jobs=args.jobs, storage=args.storage, study_name=args.study_name,
+                     seed=args.seed, objects=args.objects, held_out=args.held_out, sampler=args.sampler,
+                     bounds=parse_bounds(args.bound), config=args.config, top=args.top,
+                     pressure_error_kpa=args.pressure_error_kpa)
     make_storage(spec.storage, out)  # a storage it must not write to, or cannot reach, is named now, before any work
     return spec
 

@@ -201,7 +201,6 @@ def curves_figure(result: dict[str, Any], base: EnvConfig, plt):
     """:func:`plot_curves`' figure (not saved). Table 1 is red and dashed, drawn over the designs (``zorder``): a
     design identical to it (a small study's best may be Table 1's trial itself) shows through the dashes, and its
     legend entry says ``= Table 1``, instead of hiding Table 1's line under its own."""
-    from pneunet_env.catalogue import class_table
 
     fig, axes = plt.subplots(1, 3, figsize=(15, 4.4))
     colours = iter(["#1f77b4", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#17becf", "#7f7f7f", "#bcbd22"] * 4)
@@ -226,7 +225,7 @@ def curves_figure(result: dict[str, Any], base: EnvConfig, plt):
         axes[2].axvspan(*s["window_kpa"], color=col, alpha=0.12, lw=0)
         axes[2].plot(s["pressure_kpa"], s["blind"]["all"], "o", **dot)
     cfg = base
-    radius = class_table(cfg.objects.class_items).radius_mm if cfg.objects.from_catalogue else None
+    radius = cfg.objects.table.radius_mm if cfg.objects.from_catalogue else None
     if radius is not None:
         lo, hi = 1e3 / float(np.max(radius[1])), 1e3 / float(np.min(radius[0]))
         axes[1].axhspan(lo, hi, color="#888888", alpha=0.15, lw=0,

@@ -39,7 +39,7 @@ from agents.design.storage import _knowingly, _optuna, make_storage
 from pneunet_env.config import EnvConfig, load_config
 
 STUDY_SETTINGS = ("use_case", "class_weights", "objects", "seed", "bounds", "elastomers", "config",
-                  "pressure_error_kpa")
+                  "pressure_error_kpa", "catalogue")
 """What a study was made with: a resumed (or joined) study must be run with the same."""
 
 
@@ -62,6 +62,7 @@ class StudySpec:
     config: str | None = None
     top: int = 3
     pressure_error_kpa: float = PRESSURE_ERROR_KPA
+    catalogue: str | None = None
 
     def __post_init__(self) -> None:
         e = self.pressure_error_kpa
@@ -78,7 +79,15 @@ class StudySpec:
         self.base_config()  # the use case and weights are checked here, before any work
 
     def base_config(self) -> EnvConfig:
+        """The env config the designs change: ``config`` (the defaults without it) with the objects of ``use_case``
+        or ``class_weights`` where given (of ``catalogue`` where given), else the config's own objects."""
         over: dict[str, Any] = {}
+        if self.catalogue is not None:
+            from pneunet_env.catalogue import default_use_case
+
+            over["catalogue"] = self.catalogue
+            if self.use_case is None and self.class_weights is None:
+                over["use_case"] = default_use_case(self.catalogue)
         if self.class_weights is not None:
             over["class_weights"] = self.class_weights
         elif self.use_case is not None:
@@ -89,11 +98,14 @@ class StudySpec:
     def name(self) -> str:
         if self.study_name:
             return self.study_name
-        what = self.use_case if self.class_weights is None else "weights"
+        oc = self.base_config().objects
+        what = ("weights" if self.class_weights is not None else oc.use_case if oc.from_catalogue and
+                oc.class_weights is None else "weights" if oc.from_catalogue else "ranges")
         return f"design-{what}"
 
     def settings(self) -> dict[str, Any]:
-        return {"use_case": self.use_case, "class_weights": self.class_weights, "objects": self.objects,
+        return {"use_case": self.use_case, "class_weights": self.class_weights, "catalogue": self.catalogue,
+                "objects": self.objects,
                 "seed": self.seed, "bounds": {k: list(v) for k, v in sorted(self.bounds.items())},
                 "elastomers": sorted(elastomers()), "config": self.config,
                 "pressure_error_kpa": float(self.pressure_error_kpa)}

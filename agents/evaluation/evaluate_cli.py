@@ -49,7 +49,7 @@ from pathlib import Path
 
 import numpy as np
 
-from agents.common.cli import parse_overrides, usage_error
+from agents.common.cli import add_catalogue, parse_overrides, usage_error
 from agents.common.regimes import SOFT_MAX, STIFF_MIN
 from agents.common.words import damage_rule_text, rate_parts, regime_text, slip_rule_text, task_description
 from agents.evaluation.batch import HELD_OUT_SEED
@@ -98,6 +98,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                         help="override an environment config key (repeatable; VALUE is YAML); the paper's task: "
                              "--set use_case=null --set damage_rule=crush_fraction")
+    add_catalogue(parser)
     parser.add_argument("--objects", type=checks.integer(0, checks.MAX_COUNT), default=0,
                         help="also run N objects drawn from the env's own distribution (held-out seeds) and report "
                              "each policy's overall success rate (default 0: none)")
@@ -124,14 +125,14 @@ def run(args: argparse.Namespace) -> int:
     if not args.no_plots:  # before any episode: not a traceback once the work is done
         require_extra("evaluate", "matplotlib", "plot", "the plots", skip="--no-plots")
     try:
-        config = load_config(args.config, **parse_overrides(args.overrides))
+        config = load_config(args.config, **parse_overrides(args.overrides, args.catalogue))
         model = default_model(config)
         if args.policy is None and model is not None:  # the default policies run the task's PPO model too
             require_extra("evaluate", "stable_baselines3", "rl", f"the default policies' PPO model ({model.name})",
                           skip=" ".join(f"--policy {p}" for p in DEFAULT_POLICIES))
         specs = args.policy or list(DEFAULT_POLICIES) + ([str(model)] if model is not None else [])
         entries = [make_policy(s, config, config_path=args.config) for s in specs]
-        warn_untuned(PROG, entries, args.config, args.overrides)
+        warn_untuned(PROG, entries, args.config, args.overrides, args.catalogue)
         drawn = config.objects.from_catalogue
         if drawn:
             grid, edges = stiffness_bins(config, args.stiffness_grid, args.k_min, args.k_max)

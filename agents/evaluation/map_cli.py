@@ -72,6 +72,8 @@ __all__ = ["add_arguments", "run"]
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from agents.common.cli import add_catalogue
+
     parser.add_argument("--out", type=checks.output_dir, default="map",
                         help="output folder: map.json, map.png (default ./map); checked before the first episode, "
                              "files in it are replaced")
@@ -107,6 +109,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                         help="override an environment config key, on top of --config (repeatable; VALUE is YAML), "
                              "e.g. --set top_thickness_mm=1.5; a schedule beside --config still applies")
+    add_catalogue(parser)
     parser.add_argument("--no-plot", action="store_true", help="skip map.png (and matplotlib)")
     add_progress_argument(parser)
 
@@ -133,7 +136,7 @@ def run(args: argparse.Namespace) -> int:
             raise ValueError("--e-range and --r-range need 0 < LO <= HI")
         if any(d <= 0 for d in args.density) or not args.failure_strain > 0:
             raise ValueError("--density and --failure-strain must be > 0")
-        overrides = parse_overrides(args.overrides)
+        overrides = parse_overrides(args.overrides, args.catalogue)
         config = map_config(args.config, overrides, radius_range_mm=(r0, r1))
         task = task_config(args.config, overrides)
         E = np.logspace(math.log10(e0), math.log10(e1), ne) if ne > 1 else np.array([math.sqrt(e0 * e1)])

@@ -178,7 +178,7 @@ def _catalogue_boxes(task: EnvConfig | None = None) -> list[dict[str, Any]]:
 
     if task is not None and not task.objects.from_catalogue:
         return []
-    classes = load_catalogue()
+    classes = load_catalogue(None if task is None else task.objects.catalogue)
     weights = use_case_weights() if task is None else dict(task.objects.class_items)
     return [{"name": n, "weight": w, "youngs_modulus_kpa": list(classes[n].youngs_modulus_kpa),
              "radius_mm": list(classes[n].radius_mm), "thickness_mm": list(classes[n].thickness_mm),

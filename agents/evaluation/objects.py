@@ -17,10 +17,9 @@ def catalogue_stiffness_range(config: EnvConfig) -> tuple[float, float]:
     """The smallest and largest ``k~`` the catalogue classes of ``config`` can draw (weight > 0): eq. 3.2's ``k~``
     rises with the modulus, the thickness and the curvature, so the extremes are at the corners of each class's
     ranges (the softest, thinnest, largest object; the stiffest, thickest, smallest)."""
-    from pneunet_env.catalogue import class_table
     from pneunet_env.objects import stiffness_per_modulus
 
-    t = class_table(config.objects.class_items)
+    t = config.objects.table
     lo = stiffness_per_modulus(t.thickness_mm[0], 1e3 / t.radius_mm[1], config.scales) * t.shear_modulus_kpa[0]
     hi = stiffness_per_modulus(t.thickness_mm[1], 1e3 / t.radius_mm[0], config.scales) * t.shear_modulus_kpa[1]
     return float(np.min(lo)), float(np.max(hi))

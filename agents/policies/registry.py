@@ -253,9 +253,10 @@ def _objects_key(objects) -> tuple:
     ranges (the fields that the other kind of draw ignores are left out)."""
     from pneunet_env.config import RANGE_FIELDS
 
-    if objects.from_catalogue:
-        return ("catalogue", objects.class_items)
-    return ("ranges", tuple(tuple(getattr(objects, f)) for f in RANGE_FIELDS))
+    if objects.from_catalogue:  # the same class names in another catalogue file are other objects
+        return ("catalogue", objects.catalogue, objects.class_items)
+    return ("ranges", tuple(tuple(getattr(objects, f)) for f in RANGE_FIELDS), objects.shape,
+            objects.object_length_mm)
 
 
 def _ring_text(objects) -> str:
@@ -300,12 +301,14 @@ def tuned_schedules_text(entries) -> str:
     return f"tuned schedules: {'; '.join(parts)}" if parts else ""
 
 
-def warn_untuned(prog: str, entries, config_path: str | None = None, overrides=()) -> bool:
+def warn_untuned(prog: str, entries, config_path: str | None = None, overrides=(),
+                 catalogue: str | None = None) -> bool:
     """Warn (one line on stderr, :func:`pneunet_env.extras.warn`) where a tuned schedule runs on objects it was not
     tuned on (no shipped schedule was tuned for the config's objects): it names each such schedule, what it was
     tuned on, and the ``pneunet-grasp search`` command that tunes one for these objects (its output beside
     ``config_path``, where a config file is given, so that ``best-ramp`` and ``rigid`` then load it). ``overrides``:
-    the ``--set KEY=VALUE`` items as typed. Returns whether it warned."""
+    the ``--set KEY=VALUE`` items as typed; ``catalogue``: the ``--catalogue PATH`` given. Returns whether it
+    warned."""
     import shlex
 
     from pneunet_env.extras import PROG as ROOT
@@ -315,6 +318,8 @@ def warn_untuned(prog: str, entries, config_path: str | None = None, overrides=(
     if not off:
         return False
     sets = "".join(f" --set {shlex.quote(str(o))}" for o in overrides)
+    if catalogue is not None:
+        sets = f" --catalogue {shlex.quote(str(catalogue))}{sets}"
     commands, loads = [], []
     for e in off:
         rigid = e.command == "jaw"

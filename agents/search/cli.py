@@ -37,7 +37,7 @@ import sys
 import time
 from pathlib import Path
 
-from agents.common.cli import parse_overrides, usage_error
+from agents.common.cli import add_catalogue, parse_overrides, usage_error
 from agents.common.words import damage_rule_text, rate_parts, regime_text, task_description
 from agents.figures.search import plot_search
 from agents.search.ramp import COARSE_TARGETS, DURATIONS, save_best, search_ramp
@@ -87,6 +87,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--config", default=None, help="environment config YAML (default: the env's defaults)")
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                         help="override an environment config key (repeatable; VALUE is YAML)")
+    add_catalogue(parser)
     parser.add_argument("--sensitivity", action="store_true",
                         help="run the threshold sensitivity study of the paper's task instead (writes "
                              "sensitivity.{json,md,png} to --out; takes --objects, --seed, --grid, --out only)")
@@ -133,7 +134,7 @@ def run(args: argparse.Namespace) -> int:
     if args.plot is not None:
         require_extra("search", "matplotlib", "plot", f"--plot {args.plot}")
     try:
-        overrides = parse_overrides(args.overrides)
+        overrides = parse_overrides(args.overrides, args.catalogue)
         config = load_config(args.config, **overrides)
     except ValueError as exc:
         raise SystemExit(f"{PROG}: {exc}") from None

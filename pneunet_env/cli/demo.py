@@ -80,6 +80,8 @@ def _dest(flag: str) -> str:
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
+    from agents.common.cli import add_catalogue
+
     parser.add_argument("--task", choices=("default", "paper"), default="default",
                         help="default: objects drawn from the catalogue (by regime and class); paper: the paper's "
                              "250 mm ring, by stiffness bin")
@@ -103,6 +105,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--set", dest="overrides", action="append", default=[], metavar="KEY=VALUE",
                         help="override an environment config key, on top of --config (repeatable; VALUE is YAML), "
                              "e.g. --set max_pressure_kpa=40; a schedule beside --config still applies")
+    add_catalogue(parser)
     parser.add_argument("--json", type=checks.output_file, default=None,
                         help="also write the results as JSON to this file (checked before the first episode; an "
                              "existing file is replaced whole)")
@@ -128,7 +131,7 @@ def run(args: argparse.Namespace) -> int:
     if args.bins * args.episodes > checks.MAX_COUNT:  # their draws are made up front
         usage_error(PROG, f"--bins x --episodes is {args.bins * args.episodes} objects; at most {checks.MAX_COUNT}")
     try:
-        overrides = parse_overrides(args.overrides)
+        overrides = parse_overrides(args.overrides, args.catalogue)
         cfg = load_config(args.config, **{**(PAPER_TASK if args.task == "paper" else {}), **overrides})
         specs = list(args.policy or DEFAULT_POLICIES)
         for t in args.targets_kpa:
@@ -140,7 +143,7 @@ def run(args: argparse.Namespace) -> int:
         raise SystemExit(f"pneunet-grasp demo: {exc}") from None
     # the paper's task is its settings on top of --config: a search for these objects needs them too
     paper_sets = [f"{k}={'null' if v is None else v}" for k, v in PAPER_TASK.items()] if args.task == "paper" else []
-    warn_untuned(PROG, entries, args.config, paper_sets + list(args.overrides))
+    warn_untuned(PROG, entries, args.config, paper_sets + list(args.overrides), args.catalogue)
     if args.task == "default":
         return _run_distribution(args, cfg, entries)
     edges = np.logspace(math.log10(args.k_min), math.log10(args.k_max), args.bins + 1)

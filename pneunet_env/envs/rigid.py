@@ -92,7 +92,6 @@ import numpy as np
 from gymnasium import spaces
 
 from pneunet_env import task
-from pneunet_env.catalogue import class_table
 from pneunet_env.config import EnvConfig
 from pneunet_env.envs.base import SingleGraspEnv
 from pneunet_env.physics.params import check_positive
@@ -105,14 +104,14 @@ def default_jaw_travel_mm(config: EnvConfig) -> float:
     """``2 crush_fraction H_max``, capped at 90 % of the nominal object's radius (mm)."""
     radius_mm = 1e3 / _nominal_curvature_per_m(config)
     if config.objects.from_catalogue:  # twice the deepest compliant layer of the classes drawn
-        h_max = float(np.max(class_table(config.objects.class_items).thickness_mm[1]))
+        h_max = float(np.max(config.objects.table.thickness_mm[1]))
         return min(2.0 * h_max, 0.9 * radius_mm)
     return min(2.0 * config.task.crush_fraction * config.objects.object_thickness_mm[1], 0.9 * radius_mm)
 
 
 def _nominal_curvature_per_m(config: EnvConfig) -> float:
     if config.objects.from_catalogue:  # the middle of the classes' radii: the jaw is blind to each object's size
-        r = class_table(config.objects.class_items).radius_mm
+        r = config.objects.table.radius_mm
         return 2e3 / (float(np.min(r[0])) + float(np.max(r[1])))
     lo, hi = config.objects.object_curvature_per_m
     return 0.5 * (lo + hi)
