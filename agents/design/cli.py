@@ -142,6 +142,8 @@ def run(args: argparse.Namespace) -> int:
     if result["importance"]:
         imp = result["importance"]
         print("importance (PED-ANOVA, design score): " + ", ".join(f"{k} {v:.2f}" for k, v in imp.items()))
+    elif result.get("importance_note"):
+        print(f"importance: {result['importance_note']}")
     print(f"{result['scored']} designs scored, {result['distinct']} distinct, in {result['trials']} trials"
           f"{_duplicates(result)}; wrote {spec.out / 'design.json'}, pareto.png, curves.png, "
           f"importance.png and designs/ in {time.perf_counter() - t0:.0f} s")

@@ -264,7 +264,8 @@ def importance_figure(result: dict[str, Any], plt):
         ax.barh(names, [imp[n] for n in names], color="#4c72b0")
         ax.set_xlabel("importance for the design score\n(PED-ANOVA: top designs against all)")
     else:
-        ax.text(0.5, 0.5, "too few designs for an importance estimate", ha="center", va="center")
+        ax.text(0.5, 0.5, _wrap(result.get("importance_note") or "too few designs for an importance estimate",
+                                fig.get_figwidth(), 9), ha="center", va="center", fontsize=9)
         ax.set_axis_off()
     _title_and_layout(fig, ax, f"What matters for one blind schedule ({_use_case_title(result)}, "
                       f"{result['scored']} designs)", 9)

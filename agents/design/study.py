@@ -651,7 +651,7 @@ def report(spec: StudySpec, search_s: float = math.nan, progress: bool | None = 
                 f"{_j(s):g} with data up to a stretch of {h.wall_stretch:.2f}")
     vals = np.array([_objectives(s) for _, s in scored])
     front = _pareto(vals)
-    importance = _importance(study)
+    importance, importance_note = _importance(study)
     result = {
         "study": spec.name, "settings": spec.settings(), "trials": len(study.trials), "scored": len(scored),
         "distinct": len({json.dumps(t.params, sort_keys=True) for t, _ in scored}),
@@ -662,7 +662,8 @@ def report(spec: StudySpec, search_s: float = math.nan, progress: bool | None = 
                    "pressure_kpa": spec.pressure_error_kpa, "fit_stretch": FIT_STRETCH,
                    "corners": ("walls x{0.9, 1.1} crossed with modulus x{0.8, 1.2}; the elastomer's J range and "
                                "data-sheet mu at nominal walls; the blind pressure -/+ the regulator's error")},
-        "window_points": WINDOW_POINTS, "importance": importance, "designs": rows,
+        "window_points": WINDOW_POINTS, "importance": importance, "importance_note": importance_note,
+        "designs": rows,
         "all": [{"trial": t.number, "params": s.params, "objectives": list(_objectives(s)),
                  "score": s.score, "window_fraction": s.window_fraction, "pressure_kpa": s.pressure_kpa,
                  "oracle": s.oracle, "pareto": bool(f)} for (t, s), f in zip(scored, front, strict=True)],
@@ -706,20 +707,35 @@ def _data_note(s: DesignScore) -> str:
     return " OUTSIDE THE MATERIAL DATA (fitted to 3): not buildable as scored" if s.outside_data else ""
 
 
-def _importance(study) -> dict[str, float]:
+TIED_IMPORTANCE = ("no importance: the top designs' scores tie with the rest (PED-ANOVA's target and region "
+                   "quantiles select the same designs), so no parameter can be told apart")
+"""What the report says where PED-ANOVA cannot rank the parameters (Optuna warns that their importances are equal)."""
+
+
+def _importance(study) -> tuple[dict[str, float], str]:
     """Optuna's PED-ANOVA importance of each parameter for the design score (:func:`design_rank`'s first value):
     how differently the parameter is distributed among the top designs than among all (Watanabe et al. 2023; it
-    needs no scikit-learn, which fANOVA does)."""
+    needs no scikit-learn, which fANOVA does); and a note where there is none (:data:`TIED_IMPORTANCE` when the
+    scores tie, as they do when most designs hold nothing at their worst corner)."""
+    import warnings
+
     import optuna
 
     done = [t for t in study.trials if t.state is optuna.trial.TrialState.COMPLETE and "score" in t.user_attrs]
     if len(done) < 8:
-        return {}
+        return {}, "too few designs for an importance estimate"
     try:
-        with _knowingly():  # PED-ANOVA's note that it looks for low values: the target is negated for that
+        with _knowingly(), warnings.catch_warnings(record=True) as caught:
+            # PED-ANOVA's note that it looks for low values: the target is negated for that
+            warnings.simplefilter("always")
             imp = optuna.importance.get_param_importances(
                 study, target=lambda t: -float(t.user_attrs["score"]["score"]),
                 evaluator=optuna.importance.PedAnovaImportanceEvaluator())
     except (RuntimeError, ValueError, ImportError):  # too few distinct trials
-        return {}
-    return {k: float(v) for k, v in imp.items()}
+        return {}, "too few distinct designs for an importance estimate"
+    for w in caught:
+        if "select the same set of trials" in str(w.message):
+            return {}, TIED_IMPORTANCE
+        if not issubclass(w.category, optuna.exceptions.ExperimentalWarning) and "low `target`" not in str(w.message):
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)  # any other: passed on, not hidden
+    return {k: float(v) for k, v in imp.items()}, ""

@@ -74,6 +74,23 @@ def test_a_design_is_scored_at_its_worst_corner_and_its_window_centre():
     assert design_rank(s)[0] <= min(s.worst_corner["force"], s.worst_corner["position"])
 
 
+def test_tied_scores_give_no_importance_and_say_why_without_a_warning(recwarn):
+    """Under the worst-corner score most designs of a small study hold nothing: PED-ANOVA then warns that its target
+    and region select the same designs (importances all equal). The report says so instead of printing Optuna's
+    warning or charting equal bars."""
+    from agents.design.study import TIED_IMPORTANCE, _importance
+
+    study = optuna.create_study(directions=["maximize"] * 3)
+    for i in range(12):
+        t = study.ask()
+        t.suggest_float("top_thickness_mm", 1.0, 3.75)
+        t.suggest_float("width_mm", 5.0, 15.0)
+        t.set_user_attr("score", {"score": 0.0 if i else 0.5})
+        study.tell(t, [0.0, 0.0, 0.0])
+    assert _importance(study) == ({}, TIED_IMPORTANCE)
+    assert not [w for w in recwarn if "same set of trials" in str(w.message)]
+
+
 def test_design_space_bounds_are_sourced():
     for b in DESIGN_SPACE:
         assert 0 < b.low < b.high and b.source

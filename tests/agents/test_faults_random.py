@@ -301,7 +301,9 @@ def test_a_design_worker_killed_at_a_random_moment(tmp_path):
         argv = [*DESIGN, "--out", str(tmp_path / "warm1")]
         argv[argv.index("--trials") + 1] = "9"
         more = h.run(argv)
-        assert more["rc"] == 0 and json.loads((tmp_path / "warm1" / "design.json").read_text())["importance"]
+        res = json.loads((tmp_path / "warm1" / "design.json").read_text())
+        # computed, or said why not (the designs' scores tie: most hold nothing at their worst corner)
+        assert more["rc"] == 0 and (res["importance"] or res["importance_note"])
         for text in ("ExperimentalWarning", "low `target`", "Warning"):
             assert text not in more["err"], more["err"][-3000:]
     finally:
