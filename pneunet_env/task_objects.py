@@ -171,9 +171,10 @@ def _one_catalogue_values(u: list[float], config: EnvConfig) -> tuple[dict[str, 
     return values, cid, fs, tab.shape[cid], length
 
 
-def _catalogue_values(u: np.ndarray, config: EnvConfig) -> tuple[dict[str, Any], dict[str, Any]]:
-    """The properties of catalogue objects from their uniforms ``u`` (``(7,) + shape``), and their extra fields, as
-    arrays (one object's: :func:`_one_catalogue_values`)."""
+def _catalogue_values(u: np.ndarray, config: EnvConfig) -> tuple[dict[str, Any], dict[str, Any], Any]:
+    """The properties of catalogue objects from their uniforms ``u`` (``(7,) + shape``), their extra fields and their
+    lengths (mm; 0 where no class is a cylinder), as arrays (one object's: :func:`_one_catalogue_values`). The mass
+    is the caller's: it follows the object's size and density after any pin."""
     tab = config.objects.table
     cid = np.minimum(np.searchsorted(tab.cumulative, u[0], side="right"), len(tab.names) - 1)
 
@@ -193,11 +194,8 @@ def _catalogue_values(u: np.ndarray, config: EnvConfig) -> tuple[dict[str, Any],
         "object_failure_strain": uniform(tab.failure_strain, u[5]),
     }
     length = uniform(tab.length_mm, u[7]) if tab.has_length else 0.0
-    mass = object_mass_kg(tab.shape[cid], 1e3 / values["object_curvature_per_m"], values["object_density_kg_m3"],
-                          length_mm=length)
-    extra = {"failure_stress_kpa": log_uniform(tab.failure_stress_kpa, u[6]), "class_id": cid.astype(np.int64),
-             "mass_kg": mass}
-    return values, extra
+    extra = {"failure_stress_kpa": log_uniform(tab.failure_stress_kpa, u[6]), "class_id": cid.astype(np.int64)}
+    return values, extra, length
 
 
 def object_from_uniforms(
@@ -227,7 +225,7 @@ def object_from_uniforms(
         return _one_object(u.tolist(), config, pins)
     extra: dict[str, Any] | None = None
     if config.objects.from_catalogue:
-        values, extra = _catalogue_values(u, config)
+        values, extra, length = _catalogue_values(u, config)
     else:
         values = {name: _log_uniform(lo, hi, u[i]) if name in LOG_UNIFORM_FIELDS else lo + (hi - lo) * u[i]
                   for i, (name, (lo, hi)) in enumerate(_ranges(config))}
@@ -242,10 +240,10 @@ def object_from_uniforms(
         _raise_naming_pins(exc, pins)
     if extra is None:
         return _with_shape(obj, config)
-    if pins:  # a pinned size or density: the class's shape, the pinned numbers
-        extra["mass_kg"] = np.asarray(object_mass_kg(
-            config.objects.table.shape[extra["class_id"]], 1e3 / np.asarray(obj.curvature_per_m),
-            obj.density_kg_m3, length_mm=_drawn_length(u, config, extra["class_id"])), dtype=float)
+    # the class's shape, the object's size and density (pinned or drawn)
+    extra["mass_kg"] = np.asarray(object_mass_kg(config.objects.table.shape[extra["class_id"]],
+                                                 1e3 / np.asarray(obj.curvature_per_m), obj.density_kg_m3,
+                                                 length_mm=length), dtype=float)
     return dataclasses.replace(obj, **extra)
 
 
@@ -334,14 +332,6 @@ def _raise_naming_pins(exc: ValueError, pins: dict[str, Any]) -> NoReturn:
     if pins and not str(exc).startswith("reset option"):
         raise ValueError(f"reset option(s) {sorted(pins)}: {exc}") from None
     raise exc
-
-
-def _drawn_length(u: np.ndarray, config: EnvConfig, cid) -> Any:
-    tab = config.objects.table
-    if not tab.has_length:
-        return 0.0
-    lo, hi = tab.length_mm[0][cid], tab.length_mm[1][cid]
-    return lo + (hi - lo) * u[7]
 
 
 def _with_shape(obj: GraspObject, config: EnvConfig) -> GraspObject:

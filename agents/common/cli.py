@@ -36,10 +36,15 @@ def parse_overrides(items, catalogue: str | None = None) -> dict[str, Any]:
         if not eq or not key.strip():
             raise ValueError(f"--set needs KEY=VALUE, got {item!r}")
         out[key.strip()] = parse_value(value, f"--set {item!r}")
-    if catalogue is not None:
-        from pneunet_env.catalogue import default_use_case
+    return out if catalogue is None else with_catalogue(out, catalogue)
 
-        out["catalogue"] = str(catalogue)
-        if "use_case" not in out and "class_weights" not in out:
-            out["use_case"] = default_use_case(catalogue)  # ValueError naming the file if it is not a catalogue
+
+def with_catalogue(over: dict[str, Any], catalogue: str) -> dict[str, Any]:
+    """``over`` (config keys) with the user's ``catalogue`` and, unless ``over`` names a use case or class weights,
+    the file's default use case; ``ValueError`` naming the file if it is not a catalogue."""
+    from pneunet_env.catalogue import default_use_case
+
+    out = {**over, "catalogue": str(catalogue)}
+    if "use_case" not in out and "class_weights" not in out:
+        out["use_case"] = default_use_case(catalogue)
     return out

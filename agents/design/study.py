@@ -82,16 +82,14 @@ class StudySpec:
         """The env config the designs change: ``config`` (the defaults without it) with the objects of ``use_case``
         or ``class_weights`` where given (of ``catalogue`` where given), else the config's own objects."""
         over: dict[str, Any] = {}
-        if self.catalogue is not None:
-            from pneunet_env.catalogue import default_use_case
-
-            over["catalogue"] = self.catalogue
-            if self.use_case is None and self.class_weights is None:
-                over["use_case"] = default_use_case(self.catalogue)
         if self.class_weights is not None:
             over["class_weights"] = self.class_weights
         elif self.use_case is not None:
             over["use_case"] = self.use_case
+        if self.catalogue is not None:
+            from agents.common.cli import with_catalogue
+
+            over = with_catalogue(over, self.catalogue)
         return load_config(self.config, **over)
 
     @property

@@ -126,13 +126,13 @@ def feasible_stiffness(config: EnvConfig, density_kg_m3: float | None = None) ->
     oc = config.objects
     rho = oc.object_density_kg_m3[0] if density_kg_m3 is None else float(density_kg_m3)
     params = TaskParams.from_config(config)
+    ranges = config.replace(use_case=None, class_weights=None)  # the corners of the ranges, the config's shape
     best = np.inf
     for thickness in oc.object_thickness_mm:
         for curvature in oc.object_curvature_per_m:
             pins = {"object_shear_modulus_kpa": 1.0, "object_thickness_mm": thickness, "object_curvature_per_m":
                     curvature, "object_density_kg_m3": rho, "object_failure_strain": oc.object_failure_strain[1]}
-            obj = sample_object(np.random.default_rng(0), config.replace(use_case=None, class_weights=None), None,
-                                pins)
+            obj = sample_object(np.random.default_rng(0), ranges, None, pins)
             thr = object_thresholds(obj, params)
             best = min(best, float(thr.grip_traction / thr.crush_indentation))
     return best

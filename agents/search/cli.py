@@ -1,15 +1,5 @@
-"""The best-ramp search: one blind schedule, tuned once over the object distribution, fixed for all objects.
-
-``python -m agents.search`` grid-searches :class:`agents.policies.scripted.LinearRamp`'s two parameters, the target
-(a fraction of ``p_max``; for the rigid gripper, of its jaw travel) and the ramp duration (steps from 0 to the
-target), maximising the success rate over ``--objects`` objects drawn from the env's object distribution with
-fixed seeds (``reset(seed=seed * 1_000_003 + i)``, the same objects for every candidate). It runs the env
-itself (``PneuNetGrasp-v1`` or ``RigidGrasp-v1``), so the score is exactly the env's. A coarse grid comes first,
-then a finer one around the best target. Ties (common: a plateau of equally good targets) go to the higher mean
-return (a gentler failure: a late slip costs less than a crush), then to the middle of the tied plateau.
-
-The result is written to ``agents/best_ramp.json`` (``--gripper pneunet``, the ``best-ramp`` policy) or
-``agents/best_rigid.json`` (``--gripper rigid``, the ``rigid`` policy), so both are fixed, reproducible policies.
+"""``pneunet-grasp search`` (``python -m agents.search``): the command of the best-ramp search
+(:mod:`agents.search.ramp`, which says what it searches and where it writes the result).
 
 ``python -m agents.search --sensitivity --out DIR`` runs the threshold sensitivity study instead
 (:data:`SENSITIVITY_SETTINGS`, :func:`sensitivity_study`): for each setting of the thresholds that decide the
