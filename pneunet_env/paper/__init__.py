@@ -1,1 +1,2 @@
-"""The seed paper's reproduction: its figures (``figures``), its statements checked (``checks``), the command."""
+"""The seed paper's reproduction: its figures (``figures``), its statements checked (``checks``), the command; and the
+model against a published measurement (``anchor``, the physics alone)."""

@@ -328,8 +328,9 @@ def test_paper_import_graph_is_acyclic():
     assert graph["checks_grasp"] == graph["checks_design"] == {"checks_common", "data", "tables"}
     assert graph["checks"] == {"checks_common", "checks_grasp", "checks_design", "figures"}
     assert graph["command"] == {"figures", "checks"} and graph["__init__"] == set()
+    assert graph["anchor"] == set()  # the experimental anchor: the physics alone, beside the figures
     assert set(graph) == {"__init__", "tables", "data", "plots", "figures", "checks_common", "checks_grasp",
-                          "checks_design", "checks", "command"}
+                          "checks_design", "checks", "command", "anchor"}
     done: set[str] = set()
 
     def visit(node: str, stack: tuple[str, ...]) -> None:
