@@ -23,10 +23,12 @@ README = ROOT / "README.md"
 DOCS = ROOT / "docs"
 USAGE = DOCS / "usage.md"
 """The page of the env's spaces and of "Use with ..." (Gymnasium's vector API, SB3, rl-zoo3, the physics alone)."""
-PAGES = (README, DOCS / "results.md", USAGE, DOCS / "terms.md", DOCS / "speed.md", DOCS / "commands.md",
-         DOCS / "bad-input.md", DOCS / "install.md", DOCS / "development.md")
-"""The README and the pages its sections moved to in 0.14: their snippets (here) and commands
-(``tests/test_readme_commands.py``) are run. A page that takes a README section joins this list."""
+FIRST_PAGES = (README, DOCS / "results.md", USAGE, DOCS / "terms.md", DOCS / "speed.md", DOCS / "commands.md",
+               DOCS / "bad-input.md", DOCS / "install.md", DOCS / "development.md")
+"""The README and the pages its sections moved to in 0.14, in the order a reader meets them."""
+PAGES = FIRST_PAGES + tuple(sorted(set(DOCS.glob("*.md")) - set(FIRST_PAGES)))
+"""Every page a user reads: the README and every ``docs/*.md``. Their snippets (here) and commands
+(``tests/test_readme_commands.py``) are run; a new page joins by being written."""
 MAX_README_LINES = 250
 SETUP_WITHIN = 60
 """The README's first screen: its two set-up commands (main job and tests) lie within its first lines."""
@@ -126,11 +128,21 @@ def test_readme_is_a_front_door():
 
 
 def test_readme_links_every_page_its_sections_moved_to():
-    """A moved section stays findable from the front door: every page of :data:`PAGES` exists and is linked from
-    the README."""
+    """A moved section stays findable from the front door: every page of :data:`FIRST_PAGES` exists and is linked
+    from the README, and every other page of :data:`PAGES` is reached from it by links."""
     targets = {t.partition("#")[0] for t in LINK.findall(README.read_text(encoding="utf-8"))}
-    missing = [page_name(p) for p in PAGES[1:] if not p.is_file() or page_name(p) not in targets]
+    missing = [page_name(p) for p in FIRST_PAGES[1:] if not p.is_file() or page_name(p) not in targets]
     assert not missing, f"README.md links none of {missing}"
+    reached, todo = {README.resolve()}, [README]
+    while todo:
+        page = todo.pop()
+        for target in LINK.findall(page.read_text(encoding="utf-8")):
+            path = (page.parent / target.partition("#")[0]).resolve()
+            if path.suffix == ".md" and path.is_file() and path not in reached:
+                reached.add(path)
+                todo.append(path)
+    unreached = [page_name(p) for p in PAGES if p.resolve() not in reached]
+    assert not unreached, f"no chain of links from README.md reaches {unreached}"
 
 
 @pytest.mark.parametrize("code", _params())

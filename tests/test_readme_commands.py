@@ -121,6 +121,45 @@ DEFAULT_OUTPUT: dict[str, tuple[str, str]] = {
 README's command does not give the flag. Not here: commands whose output flag is required (``figures --out``;
 ``render --out`` or ``--sheet``), so that a README command without it fails as it would for a user."""
 
+PREREQUISITES: dict[tuple[str, str], tuple[str, ...]] = {
+    ("figures", "--table-only"): ("figures", "--quick"),
+    ("bench speed", "--plot-only"): ("bench", "speed", "--quick"),
+}
+"""(subcommand, a flag the page's command has): the run that makes what it reads (the CSVs, ``speed.json``), into
+the same output folder first: a page shows them one after the other."""
+
+
+def _fruit_catalogue(dest: Path) -> None:
+    """``docs/env.md``'s worked example, as its reader writes it: the YAML block with the packaged apple copied in
+    where the page writes ``apple: {...}``."""
+    from pneunet_env.yamlio import dump_yaml, load_yaml
+
+    text = (ROOT / "docs" / "env.md").read_text(encoding="utf-8")
+    block = next(m.group(2) for m in FENCE.finditer(text)
+                 if m.group(1).strip() == "yaml" and "my_kiwi" in m.group(2))
+    data = load_yaml(block.replace("{...}", "null"), "docs/env.md's fruit bowl")
+    packaged = load_yaml((ROOT / "pneunet_env" / "data" / "objects.yaml").read_bytes(), "objects.yaml")
+    data["classes"]["apple"] = packaged["classes"]["apple"]
+    dest.write_text(dump_yaml(data, sort_keys=False), encoding="utf-8")
+
+
+def _designed_rank1(dest: Path) -> None:
+    """``designs/rank-1.yaml`` of a design study's output folder, as ``docs/design.md`` names it: the shipped
+    kitchen design (what ``--export`` wrote from rank 1), with its ramp beside it."""
+    src = ROOT / "configs" / "env" / "designed-kitchen.yaml"
+    dest.parent.mkdir(parents=True, exist_ok=True)
+    shutil.copyfile(src, dest)
+    shutil.copyfile(src.with_suffix(".best_ramp.json"), dest.with_suffix(".best_ramp.json"))
+
+
+INPUTS = {"fruit.yaml": _fruit_catalogue, "designs/rank-1.yaml": _designed_rank1}
+"""Input files a page's command names that a reader makes first (by the page's own recipe): made in tmp_path,
+and the command pointed there."""
+
+NEEDS_CUDA = ("--device", "cuda")
+"""A command that names a CUDA device runs only where torch sees one (the GPU figures of docs/speed.md); elsewhere
+it is skipped by name, with its reason."""
+
 ZOO_SMOKE = ("-n", "2048")
 """rl-zoo3: one rollout of the config's 16 envs x 128 steps."""
 
@@ -368,6 +407,13 @@ def prepare(cmd: Command, tmp_path: Path, dry: bool = False) -> list[str]:
     nothing)."""
     name = cmd.name
     argv = _redirect(list(cmd.argv), tmp_path, dry)
+    for i, word in enumerate(argv):
+        if word in INPUTS:
+            made = tmp_path / "inputs" / word
+            if not dry:
+                made.parent.mkdir(parents=True, exist_ok=True)
+                INPUTS[word](made)
+            argv[i] = str(made)
     if name in DEFAULT_OUTPUT:
         flag, sub = DEFAULT_OUTPUT[name]
         if name == "search" and _has(argv, "--sensitivity"):
@@ -385,6 +431,19 @@ def prepare(cmd: Command, tmp_path: Path, dry: bool = False) -> list[str]:
         if sub_name == name and _has(cmd.argv, flag):
             argv += more
     return argv
+
+
+def _has_words(argv, words: tuple[str, ...]) -> bool:
+    n = len(words)
+    return any(tuple(argv[i:i + n]) == words for i in range(len(argv) - n + 1))
+
+
+def _cuda() -> bool:
+    try:
+        import torch
+    except ImportError:
+        return False
+    return bool(torch.cuda.is_available())
 
 
 def run_key(cmd: Command) -> tuple[str, ...]:
@@ -594,6 +653,14 @@ def test_command_runs(cmd: Command, also: tuple[str, ...], tmp_path, capfd, monk
         assert cmd.name in COMMANDS or not cmd.argv, f"`{cmd.text}` ({cmd.where}): no such subcommand"
     argv = prepare(cmd, tmp_path)
     monkeypatch.chdir(ROOT)
+    if _has_words(cmd.argv, NEEDS_CUDA) and not _cuda():
+        pytest.skip(f"`{cmd.text}` ({cmd.where}) needs a CUDA GPU (torch sees none here)")
+    for (sub_name, flag), before in PREREQUISITES.items():
+        if sub_name == cmd.name and _has(cmd.argv, flag):
+            out_flag = argv.index("--out") + 1
+            first = [*before, "--out", argv[out_flag]]
+            status, output = _run_in_process(first, capfd)
+            assert status == 0, f"`{cmd.text}` ({cmd.where}): its prerequisite `{shlex.join(first)}` failed\n{output}"
     t0 = time.perf_counter()
     if cmd.kind == "rl_zoo3":
         status, output = _run_subprocess([sys.executable, "-m", "rl_zoo3.train"], argv)
