@@ -5,10 +5,11 @@ shape, the elastomer's modulus and its Gent limit shape the pressure-curvature c
 pressure is safe for soft objects yet firm enough for stiff ones. This module turns that into a search:
 
 * **The design space** (:data:`DESIGN_SPACE`): the top, side and base wall thicknesses, the chamber height and
-  width, and the elastomer, one of the commercial casting elastomers of ``pneunet_env/data/elastomers.yaml``
-  (its small-strain shear modulus ``mu`` and Gent limit ``J`` from a fit to measured curves, each with its
-  source), or the paper's Table 1 material. A design with a low Gent limit and a soft modulus is therefore
-  always a material one can buy. Every bound says where it comes from (:class:`Bound`).
+  width, the finger in 3D (its width ``t + 2 h_s``, capped at the narrowest object, its length and 2 or 3 fingers:
+  what the hold rule carries the weight on), and the elastomer, one of the commercial casting elastomers of
+  ``pneunet_env/data/elastomers.yaml`` (its small-strain shear modulus ``mu`` and Gent limit ``J`` from a fit to
+  measured curves, each with its source), or the paper's Table 1 material. A design with a low Gent limit and a
+  soft modulus is therefore always a material one can buy. Every bound says where it comes from (:class:`Bound`).
 * **The pressure scale follows the elastomer.** A design's ``max_pressure_kpa`` is ``1.2 mu`` (the paper's
   ``p~ = 1.2``, Table 1's 60 kPa) and its step ``0.06 mu`` (Table 1's 3 kPa), so a stiffer elastomer is not
   cut off at 60 kPa (:func:`design_config`).

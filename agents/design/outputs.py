@@ -25,7 +25,8 @@ def design_yaml(params: Mapping[str, Any], base: EnvConfig, note: str) -> str:
     body = {"actuator": d["actuator"],
             "objects": {"use_case": d["objects"]["use_case"], "class_weights": d["objects"]["class_weights"]},
             "task": {"max_pressure_kpa": d["task"]["max_pressure_kpa"],
-                     "max_pressure_step_kpa": d["task"]["max_pressure_step_kpa"]}}
+                     "max_pressure_step_kpa": d["task"]["max_pressure_step_kpa"],
+                     "grip_faces": d["task"]["grip_faces"]}}
     head = "".join(f"# {line}\n" for line in note.splitlines())
     return head + dump_yaml(body, sort_keys=False)
 
@@ -140,7 +141,8 @@ def _is_table1(row: dict[str, Any], table1: dict[str, Any] | None) -> bool:
 
 def plot_pareto(result: dict[str, Any], path: Path, plt) -> Path:
     """Blind success on force- against position-controlled objects (Table 1's labels), every design of the study;
-    colour: the worse regime under manufacturing error; the Pareto front ringed; Table 1 and the best marked."""
+    colour: the worse regime at the worst corner (the third objective); the Pareto front ringed; Table 1 and the best
+    marked."""
     return _save(pareto_figure(result, plt), path, plt)
 
 
@@ -163,7 +165,7 @@ def pareto_figure(result: dict[str, Any], plt):
             what = "Table 1 itself" if _is_table1(row, _table1(result)) else row["params"]["elastomer"]
             ax.plot(s["blind"]["force"], s["blind"]["position"], "D", ms=9, color="#ff7f0e", mec="black",
                     label=f"best design ({what}, {s['pressure_kpa']:.1f} kPa)")
-    fig.colorbar(sc, ax=ax, label="worse regime under manufacturing error")
+    fig.colorbar(sc, ax=ax, label="worse regime at the worst corner")
     ax.set_xlabel("blind success, force-controlled objects")
     ax.set_ylabel("blind success, position-controlled objects")
     ax.set_xlim(-0.03, 1.03)

@@ -42,15 +42,42 @@ FIT_STRETCH = 3.0
 design whose walls stretch further at its blind pressure is "outside the material data"."""
 
 
+MIN_DEPTH_MM = 1.0
+"""The least cavity depth ``t = b - 2 h_s`` (mm) a finger of width ``b`` may leave: the thinnest cast wall's (1 mm)."""
+FINGER_WIDTH_MM = (10.0, 20.0)
+FINGER_WIDTH_SOURCE = (
+    "the finger's out-of-plane width b = t + 2 h_s. 10 mm: the seed paper's cell (Table 1: t = 5 mm, h_s = 2.5 mm). "
+    "20 mm: SOFA's PneuNets gripper (github.com/SofaDefrost/Tutorials, PneuNets-Gripper/SOFA-scene/mesh/"
+    "pneunetCut.stl: 20 mm across, its cavity 15 mm, so t = 15, h_s = 2.5; its docs: 'the 2cm of the PneuNet "
+    "actuators') and Shintake et al. 2017, arXiv:1703.01423 (a 90 x 20 x 17 mm actuator). Between them: the Soft "
+    "Robotics Toolkit's PneuNets mould (15 mm chambers, 2 mm walls: 19 mm). No published pneu-net finger wider than "
+    "20 mm was found")
+FINGER_LENGTH_RANGE_MM = (83.0, 120.0)
+FINGER_LENGTH_SOURCE = (
+    "the chambered length along the base. 83 mm: SOFA's PneuNets gripper (pneunetCavityCut.stl: its chambers span "
+    "83 mm of a 115 mm part). 120 mm: Sorotoki's PneuNet example (github.com/BJCaasenbrood/SorotokiCode, BdBox "
+    "[0,120,0,20] mm, after Mosadegh et al. 2014, Adv. Funct. Mater. 24:2163). Between them: Shintake et al. 2017 "
+    "(90 mm, the default) and the Soft Robotics Toolkit's mould (11 chambers of 8 mm, 2 mm apart: 108 mm)")
+FINGER_COUNTS = (2, 3)
+FINGER_COUNT_SOURCE = (
+    "fingers sharing the weight (grip_faces). 2: Shintake et al. 2017 ('two actuators are integrated to form a "
+    "gripper'). 3: SOFA's PneuNets gripper ('composed of three pneumatic actuators', at 0, 120 and 240 degrees). "
+    "Grippers of 4 and 6 exist (a six-pointed starfish, Ilievski et al. 2011); with three or more, each finger's "
+    "contact is still capped at its share of one circumference, 2 pi R / n: conservative for fingers that close "
+    "along meridians (docs/env.md, 'The hold rule')")
+
+
 @dataclass(frozen=True)
 class Bound:
-    """A continuous design parameter: an ``EnvConfig`` actuator key, its range and why."""
+    """A design parameter: an ``EnvConfig`` key (the actuator's, or ``grip_faces``), its range and why."""
 
     key: str
     low: float
     high: float
     unit: str
     source: str
+    integer: bool = False
+    """An integer parameter (the finger count): every whole number from ``low`` to ``high``."""
 
 
 @dataclass(frozen=True)
@@ -123,8 +150,14 @@ DESIGN_SPACE: tuple[Bound, ...] = (
     Bound("chamber_height_mm", 5.0, 15.0, "mm",
           "5 mm: Table 1; 15 mm: the Soft Robotics Toolkit's cast chamber (elastomers.yaml chamber_mm)"),
     Bound("width_mm", 5.0, 15.0, "mm", "as the chamber height"),
+    Bound("finger_width_mm", FINGER_WIDTH_MM[0], FINGER_WIDTH_MM[1], "mm", FINGER_WIDTH_SOURCE),
+    Bound("length_mm", FINGER_LENGTH_RANGE_MM[0], FINGER_LENGTH_RANGE_MM[1], "mm", FINGER_LENGTH_SOURCE),
+    Bound("grip_faces", FINGER_COUNTS[0], FINGER_COUNTS[1], "fingers", FINGER_COUNT_SOURCE, integer=True),
 )
-"""The continuous parameters, each a manufacturable range with its source. A wall of 1 mm in a 15 mm chamber is
+"""The design parameters, each a manufacturable range with its source: the cell's walls and chamber (the
+mechanics), then the finger in 3D (the grip: its out-of-plane width ``b = t + 2 h_s``, its length and how many
+fingers share the weight; the model charges nothing for a wider, longer finger or one more of them, so they move
+only the hold rule). The cell's parameters are continuous. A wall of 1 mm in a 15 mm chamber is
 ``h/w = 0.07``, far below the paper's computed ``h/w = 0.25 .. 0.75`` (the Toolkit's own actuator is at 0.07 ..
 0.13): the thin-wall model is defined there, and thin walls are where it is most apt, but the paper did not
 compute it, so such designs leave the range the seed paper checked (:func:`validity`)."""
@@ -132,7 +165,7 @@ compute it, so such designs leave the range the seed paper checked (:func:`valid
 
 def validity(params: Mapping[str, Any]) -> dict[str, float | bool]:
     """The design's wall-to-width ratios and whether they lie in the seed paper's computed range 0.25 .. 0.75."""
-    w = float(params["width_mm"])
+    w = float(params["width_mm"])  # the chamber's pitch (the cell), not the finger's out-of-plane width
     r = {k: float(params[k]) / w for k in ("top_thickness_mm", "side_thickness_mm", "base_thickness_mm")}
     return {**{f"{k.split('_')[0]}_over_width": v for k, v in r.items()},
             "chamber_aspect": float(params["chamber_height_mm"]) / w,
@@ -140,7 +173,8 @@ def validity(params: Mapping[str, Any]) -> dict[str, float | bool]:
 
 
 def parse_bounds(items: Sequence[str]) -> dict[str, tuple[float, float]]:
-    """``KEY=LOW:HIGH`` strings -> narrowed bounds (each inside :data:`DESIGN_SPACE`'s, ``LOW < HIGH``)."""
+    """``KEY=LOW:HIGH`` strings -> narrowed bounds (each inside :data:`DESIGN_SPACE`'s, ``LOW < HIGH``; an integer
+    parameter's are whole numbers, ``LOW <= HIGH``: ``grip_faces=3:3`` fixes it)."""
     space = {b.key: b for b in DESIGN_SPACE}
     out: dict[str, tuple[float, float]] = {}
     for item in items:
@@ -155,7 +189,9 @@ def parse_bounds(items: Sequence[str]) -> dict[str, tuple[float, float]]:
         except ValueError:
             raise ValueError(f"--bound {item!r}: LOW and HIGH must be numbers") from None
         b = space[key]
-        if not (math.isfinite(lo) and math.isfinite(hi)) or not lo < hi:
+        if b.integer and not (lo.is_integer() and hi.is_integer() and lo <= hi):
+            raise ValueError(f"--bound {item!r}: {key} is a whole number: need whole LOW <= HIGH")
+        if not b.integer and (not (math.isfinite(lo) and math.isfinite(hi)) or not lo < hi):
             raise ValueError(f"--bound {item!r}: need finite LOW < HIGH")
         if lo < b.low or hi > b.high:
             raise ValueError(f"--bound {item!r}: outside the manufacturable range {b.low:g}..{b.high:g} {b.unit} "
@@ -164,11 +200,42 @@ def parse_bounds(items: Sequence[str]) -> dict[str, tuple[float, float]]:
     return out
 
 
+def narrowest_object_mm(config: EnvConfig) -> float:
+    """The smallest extent (mm) of ``config``'s objects across the finger's width: ``2 R`` of a sphere at the
+    smallest radius, a cylinder's or a ring's length (``inf`` where a ring takes the finger's own width). The hold
+    rule takes the whole finger's width ``b`` as the contact's, which holds only while ``b`` is no wider than the
+    object: a design study caps ``finger_width_mm`` here (:func:`grip_bounds`)."""
+    import numpy as np
+
+    oc = config.objects
+    if oc.from_catalogue:
+        tab = oc.table
+        ext = np.where(tab.shape == 0, 2.0 * tab.radius_mm[0], np.where(tab.length_mm[0] > 0, tab.length_mm[0], np.inf))
+        return float(ext.min())
+    if oc.shape == "sphere":
+        return 2e3 / max(oc.object_curvature_per_m)
+    return math.inf if oc.object_length_mm is None else float(oc.object_length_mm)
+
+
+def chamber_depth_mm(finger_width_mm: float, side_thickness_mm: float) -> float:
+    """The cavity's out-of-plane depth ``t = b - 2 h_s`` (mm) of a finger ``b`` wide with side walls ``h_s``; a
+    ``ValueError`` naming both where it leaves less than :data:`MIN_DEPTH_MM` of cavity."""
+    t = float(finger_width_mm) - 2.0 * float(side_thickness_mm)
+    if not t >= MIN_DEPTH_MM:
+        raise ValueError(f"finger_width_mm = {finger_width_mm!r} with side_thickness_mm = {side_thickness_mm!r} leaves "
+                         f"a cavity {t:.3g} mm deep (t = b - 2 h_s); need at least {MIN_DEPTH_MM:g} mm")
+    return t
+
+
 def design_config(params: Mapping[str, Any], base: EnvConfig | None = None) -> EnvConfig:
-    """The env config of a design: ``params`` (actuator keys of :data:`DESIGN_SPACE`, and ``elastomer``, a name
-    of :func:`elastomers`) on ``base``, with the pressure scale following the modulus (:data:`P_TILDE_MAX`)."""
+    """The env config of a design: ``params`` (keys of :data:`DESIGN_SPACE`, and ``elastomer``, a name of
+    :func:`elastomers`) on ``base``, with the pressure scale following the modulus (:data:`P_TILDE_MAX`). The
+    finger's width ``finger_width_mm`` sets the cavity's depth, ``depth_mm = b - 2 h_s`` (:func:`chamber_depth_mm`)."""
     base = EnvConfig() if base is None else base
     p = dict(params)
+    if "finger_width_mm" in p:
+        p["depth_mm"] = chamber_depth_mm(p.pop("finger_width_mm"),
+                                         p.get("side_thickness_mm", base.actuator.side_thickness_mm))
     name = p.pop("elastomer", None)
     if name is not None:
         table = elastomers()
@@ -183,9 +250,11 @@ def design_config(params: Mapping[str, Any], base: EnvConfig | None = None) -> E
 
 
 def table1_design() -> dict[str, Any]:
-    """The seed paper's Table 1 actuator as design parameters."""
-    a = EnvConfig().actuator
-    return {b.key: getattr(a, b.key) for b in DESIGN_SPACE} | {"elastomer": TABLE1_ELASTOMER.name}
+    """The seed paper's Table 1 actuator as design parameters (its finger 10 mm wide, ``t + 2 h_s``, the default
+    length and two fingers: :class:`pneunet_env.physics.units.PhysicalActuator`)."""
+    c = EnvConfig()
+    return ({b.key: getattr(c.task if b.key == "grip_faces" else c.actuator, b.key) for b in DESIGN_SPACE}
+            | {"elastomer": TABLE1_ELASTOMER.name})
 
 
 def corner_configs(config: EnvConfig, elastomer: str | None) -> list[tuple[str, EnvConfig]]:

@@ -32,6 +32,7 @@ from agents.design.space import (
     WALL_ERROR,
     WINDOW_POINTS,
     elastomers,
+    narrowest_object_mm,
     table1_design,
     validity,
 )
@@ -110,11 +111,18 @@ class StudySpec:
 
 
 def _space(spec: StudySpec) -> dict[str, tuple[float, float]]:
-    return {b.key: spec.bounds.get(b.key, (b.low, b.high)) for b in DESIGN_SPACE}
+    """Each parameter's range: :data:`DESIGN_SPACE`'s, narrowed by ``--bound``, the finger no wider than the
+    narrowest object (:func:`agents.design.space.narrowest_object_mm`; the hold rule presses the whole width)."""
+    space = {b.key: spec.bounds.get(b.key, (b.low, b.high)) for b in DESIGN_SPACE}
+    lo, hi = space["finger_width_mm"]
+    space["finger_width_mm"] = (lo, max(lo, min(hi, narrowest_object_mm(spec.base_config()))))
+    return space
 
 
 def _suggest(trial, spec: StudySpec) -> dict[str, Any]:
-    p: dict[str, Any] = {k: trial.suggest_float(k, lo, hi) for k, (lo, hi) in _space(spec).items()}
+    integer = {b.key for b in DESIGN_SPACE if b.integer}
+    p: dict[str, Any] = {k: trial.suggest_int(k, int(lo), int(hi)) if k in integer else trial.suggest_float(k, lo, hi)
+                         for k, (lo, hi) in _space(spec).items()}
     p["elastomer"] = trial.suggest_categorical("elastomer", sorted(elastomers()))
     return p
 
@@ -677,12 +685,20 @@ def _pct(x: float) -> str:
 def _line(label: str, s: DesignScore, h: DesignScore) -> str:
     return (f"{label:>8}: {s.params['elastomer']:>16} h_m {s.params['top_thickness_mm']:.2f} h_s "
             f"{s.params['side_thickness_mm']:.2f} h_b {s.params['base_thickness_mm']:.2f} d "
-            f"{s.params['chamber_height_mm']:.2f} w {s.params['width_mm']:.2f} mm; blind {h.pressure_kpa:5.1f} kPa | "
+            f"{s.params['chamber_height_mm']:.2f} w {s.params['width_mm']:.2f} mm; {_finger(s.params)}; blind "
+            f"{h.pressure_kpa:5.1f} kPa | "
             f"held out: force {_pct(h.blind['force'])} position {_pct(h.blind['position'])} (oracle "
             f"{_pct(h.oracle['force'])} {_pct(h.oracle['position'])}), worst corner "
             f"{_pct(h.worst_corner.get('force', math.nan))} {_pct(h.worst_corner.get('position', math.nan))}, random "
             f"error {_pct(h.robust['force'])} {_pct(h.robust['position'])}, window {h.window_fraction:.0%}; wall "
             f"stretch {h.wall_stretch:.2f}{_data_note(h)}")
+
+
+def _finger(params: dict[str, Any]) -> str:
+    """The finger in 3D: its width, length and count (Table 1's where a study made before 0.15 has none)."""
+    t1 = table1_design()
+    b, length, n = (params.get(k, t1[k]) for k in ("finger_width_mm", "length_mm", "grip_faces"))
+    return f"{n} fingers {b:.1f} x {length:.0f} mm"
 
 
 def _buildable(s: DesignScore) -> bool:

@@ -206,6 +206,11 @@ def test_two_workers_share_one_study(tmp_path, four_cores):
     (["--bound", "top_thickness_mm=a:2"], "numbers"),
     (["--bound", "top_thickness_mm=0.1:2"], "manufacturable"),
     (["--bound", "top_thickness_mm=nan:2"], "finite"),
+    (["--bound", "grip_faces=2.5:3"], "whole"),
+    (["--bound", "grip_faces=3:2"], "whole LOW <= HIGH"),
+    (["--bound", "grip_faces=1:3"], "manufacturable"),
+    (["--bound", "finger_width_mm=1:12"], "manufacturable"),
+    (["--bound", "length_mm=90:1000"], "manufacturable"),
     (["--export", "x.txt"], "yaml"),
     (["--worker", "--report"], "exclude"),
     (["--pressure-error-kpa", "-1"], "pressure_error_kpa must be a finite number >= 0"),
@@ -221,6 +226,44 @@ def test_bad_values_are_refused_before_any_work(tmp_path, argv, match):
 def test_parse_bounds():
     assert parse_bounds(["width_mm=6:8"]) == {"width_mm": (6.0, 8.0)}
     assert parse_bounds([]) == {}
+    assert parse_bounds(["grip_faces=3:3"]) == {"grip_faces": (3.0, 3.0)}  # a whole number may be fixed
+
+
+def test_the_finger_in_3d_is_designed_within_sourced_ranges():
+    # the finger's width, length and count are design parameters (issue 33, item 3); Table 1's finger lies inside
+    space = {b.key: b for b in DESIGN_SPACE}
+    t1 = table1_design()
+    assert (t1["finger_width_mm"], t1["length_mm"], t1["grip_faces"]) == (10.0, 90.0, 2)
+    for key in ("finger_width_mm", "length_mm", "grip_faces"):
+        b = space[key]
+        assert b.low <= t1[key] <= b.high and len(b.source) > 40, b
+    assert space["grip_faces"].integer and not space["length_mm"].integer
+    # the width sets the cavity's depth t = b - 2 h_s; the grip reads b, length and count from the config
+    cfg = design_config({**t1, "finger_width_mm": 20.0, "side_thickness_mm": 3.0, "length_mm": 110.0,
+                         "grip_faces": 3})
+    a = cfg.actuator
+    assert a.depth_mm == pytest.approx(14.0) and a.finger_width_mm == pytest.approx(20.0)
+    assert a.length_mm == 110.0 and cfg.task.grip_faces == 3
+    assert design_config(t1).actuator == load_config().actuator  # Table 1 unchanged
+    with pytest.raises(ValueError, match="finger_width_mm = 8.0 with side_thickness_mm = 3.75 leaves a cavity"):
+        design_config({**t1, "finger_width_mm": 8.0, "side_thickness_mm": 3.75})
+
+
+def test_the_designed_finger_is_no_wider_than_the_narrowest_object(tmp_path):
+    # the hold rule presses the finger's whole width on the object: a study caps the width at the narrowest object
+    from agents.design.space import narrowest_object_mm
+    from agents.design.study import StudySpec, _space
+
+    assert narrowest_object_mm(load_config(use_case="kitchen")) == 30.0  # the 15 mm gels and cheeses, as spheres
+    ranges = load_config(use_case=None, object_curvature_per_m=[40.0, 80.0], shape="sphere")
+    assert narrowest_object_mm(ranges) == pytest.approx(25.0)  # 2 R at 80 /m
+    ring = load_config(use_case=None, shape="ring", object_length_mm=12.0)
+    assert narrowest_object_mm(ring) == 12.0
+    cap = StudySpec(out=tmp_path, use_case=None, config=None)
+    lo, hi = _space(cap)["finger_width_mm"]
+    space = {b.key: b for b in DESIGN_SPACE}
+    assert lo == space["finger_width_mm"].low and hi == min(space["finger_width_mm"].high,
+                                                            narrowest_object_mm(cap.base_config()))
 
 
 @pytest.mark.slow

@@ -72,8 +72,8 @@ def test_shipped_schedules_in_kpa():
         got[path.stem if path else "default"] = round(_kpa(make_policy("best-ramp", cfg, config_path=path), cfg), 6)
     paper = load_config(None, **PAPER_TASK)
     got["paper"] = round(_kpa(make_policy("best-ramp", paper), paper), 6)
-    assert got == {"default": 35.1, "paper": 42.0, "designed-catalogue_uniform": 134.904, "designed-kitchen": 122.64,
-                   "designed-lab_bench": 54.8}
+    assert got == {"default": 35.1, "paper": 42.0, "designed-catalogue_uniform": 44.936, "designed-kitchen": 39.456,
+                   "designed-lab_bench": 42.744}
 
 
 # ------------------------------------------------------------------------------------ (c) a schedule is defined in kPa
@@ -86,7 +86,7 @@ def test_a_new_maximum_never_moves_a_tuned_schedule():
     assert make_policy("rigid", cfg).policy.target * default_jaw_travel_mm(cfg) == pytest.approx(7.832)
     designed = ENV_CONFIGS / "designed-kitchen.yaml"
     cfg = load_config(designed, max_pressure_kpa=150.0)
-    assert _kpa(make_policy("best-ramp", cfg, config_path=designed), cfg) == pytest.approx(122.64, rel=1e-9)
+    assert _kpa(make_policy("best-ramp", cfg, config_path=designed), cfg) == pytest.approx(39.456, rel=1e-9)
 
 
 def test_a_schedule_above_the_new_maximum_is_refused_not_clipped():
@@ -186,7 +186,7 @@ def test_a_designed_config_without_its_ramp_is_refused_not_run_with_another_actu
     # with its ramp beside it again, it runs the design's
     shutil.copyfile(ENV_CONFIGS / "designed-kitchen.best_ramp.json", tmp_path / "designed-kitchen.best_ramp.json")
     cfg = load_config(copy)
-    assert _kpa(make_policy("best-ramp", cfg, config_path=copy), cfg) == pytest.approx(122.64)
+    assert _kpa(make_policy("best-ramp", cfg, config_path=copy), cfg) == pytest.approx(39.456)
     # the jaw's schedule does not depend on the pneu-net: the package's, as before
     (tmp_path / "designed-kitchen.best_ramp.json").unlink()
     assert "7.83 mm" in make_policy("rigid", cfg, config_path=copy).label
