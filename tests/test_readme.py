@@ -39,6 +39,7 @@ LINK = re.compile(r"!?\[(?:[^\]\[]|\[[^\]]*\])*\]\(([^)\s]+)(?:\s+\"[^\"]*\")?\)
 HTML_ANCHOR = re.compile(r"<a\s+(?:id|name)=\"([^\"]+)\"", re.I)
 HAS_SB3 = importlib.util.find_spec("stable_baselines3") is not None
 SIZE = re.compile(r"\btotal_timesteps=([\d_]+)")
+SIZE_BY_POSITION = re.compile(r"(?<=\.learn\()[\d_]+(?=[,)])")
 SMOKE_TIMESTEPS = 1
 """A training snippet's ``learn(total_timesteps=N)`` runs with this: one rollout and one update."""
 
@@ -78,8 +79,9 @@ def snippets() -> list[tuple[str, str]]:
 
 
 def smoke(code: str) -> str:
-    """The snippet at smoke size: every ``total_timesteps=N`` becomes :data:`SMOKE_TIMESTEPS`."""
-    return SIZE.sub(f"total_timesteps={SMOKE_TIMESTEPS}", code)
+    """The snippet at smoke size: every ``total_timesteps=N``, and a ``.learn(N)`` given its size by position, becomes
+    :data:`SMOKE_TIMESTEPS`."""
+    return SIZE_BY_POSITION.sub(str(SMOKE_TIMESTEPS), SIZE.sub(f"total_timesteps={SMOKE_TIMESTEPS}", code))
 
 
 def _params():
@@ -88,8 +90,18 @@ def _params():
         marks = []
         if "stable_baselines3" in code:
             marks.append(pytest.mark.skipif(not HAS_SB3, reason="stable_baselines3 is not installed (the rl extra)"))
+        if ".learn(" in code:  # a training snippet: one rollout at least (64 envs x 2,048 steps: a minute), so slow
+            marks.append(pytest.mark.slow)
         params.append(pytest.param(code, id=name, marks=marks))
     return params
+
+
+def test_a_training_snippet_runs_at_smoke_size_whichever_way_it_gives_its_size():
+    # a size given by position (docs/performance.md's PPO(...).learn(100_000)) was run at full size until 0.15
+    assert smoke("PPO(p, v).learn(100_000)") == f"PPO(p, v).learn({SMOKE_TIMESTEPS})"
+    assert smoke("m.learn(total_timesteps=2_000, progress_bar=True)") == \
+        f"m.learn(total_timesteps={SMOKE_TIMESTEPS}, progress_bar=True)"
+    assert smoke("m.learn(n)") == "m.learn(n)" and smoke("x = 100_000") == "x = 100_000"
 
 
 def test_the_snippets_are_found():
