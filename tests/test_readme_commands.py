@@ -53,6 +53,9 @@ _spec = importlib.util.spec_from_file_location("readme_snippets", ROOT / "tests"
 _readme = importlib.util.module_from_spec(_spec)
 _spec.loader.exec_module(_readme)
 PAGES: tuple[Path, ...] = _readme.PAGES
+FIRST_PAGES: frozenset[str] = frozenset(p.relative_to(ROOT).as_posix() for p in _readme.FIRST_PAGES)
+"""The README and the pages its sections moved to: their commands run here; the other docs pages' commands run in
+``tests/test_docs_commands.py``, a file of its own so that ``--dist loadfile`` runs the two halves side by side."""
 """The README and the docs pages its sections moved to (``tests/test_readme.py``'s, one list for both)."""
 PYPROJECT = ROOT / "pyproject.toml"
 PROG = "pneunet-grasp"
@@ -84,8 +87,17 @@ SMOKE: dict[str, tuple[str, ...]] = {
 SMOKE_IF: dict[tuple[str, str], tuple[str, ...]] = {
     ("train", "--seeds"): ("--seeds", "2", "--objects", "8", "--jobs", "1"),  # one process: no spawn from pytest
     ("search", "--sensitivity"): ("--grid", "3"),
+    # torch.compile's first compilation of the solver's round takes minutes on a CPU (266 s on the 2-core CI machine;
+    # docs/performance.md says it had no figure for that reason): the smoke run takes the sweep's CPU backends, with
+    # --compile accepted; the compiled round itself is what a lent GPU measures (``bench gpu``, issue 35)
+    ("bench speed", "--compile"): ("--backend", "numba", "numpy", "--num-envs", "256"),
 }
 """(subcommand, a flag the README's command has): more flags appended after :data:`SMOKE`'s."""
+
+SMOKE_INSTEAD: dict[tuple[str, str], tuple[str, ...]] = {
+    ("demo", "--task"): ("--episodes", "1", "--bins", "2"),  # the paper's task draws by stiffness bin, not --objects
+}
+"""(subcommand, a flag the page's command has): the smoke flags that replace :data:`SMOKE`'s."""
 
 OK_STATUS: dict[tuple[str, str], tuple[int, ...]] = {
     # On smoke-size objects the findings are noise: exit 1 ("a finding is not as expected") is a result, not a crash.
@@ -123,10 +135,14 @@ README's command does not give the flag. Not here: commands whose output flag is
 
 PREREQUISITES: dict[tuple[str, str], tuple[str, ...]] = {
     ("figures", "--table-only"): ("figures", "--quick"),
-    ("bench speed", "--plot-only"): ("bench", "speed", "--quick"),
 }
-"""(subcommand, a flag the page's command has): the run that makes what it reads (the CSVs, ``speed.json``), into
-the same output folder first: a page shows them one after the other."""
+"""(subcommand, a flag the page's command has): the run that makes what it reads (the CSVs), into the same output
+folder first: a page shows them one after the other."""
+SHIPPED_OUTPUTS: dict[tuple[str, str], tuple[str, ...]] = {
+    ("bench speed", "--plot-only"): ("docs/img/performance/speed.json",),
+}
+"""(subcommand, a flag): what it reads from its output folder, copied there from the repository's own record (the
+chart's run, a real ``bench speed --out`` record) instead of measuring again."""
 
 
 def _fruit_catalogue(dest: Path) -> None:
@@ -317,15 +333,17 @@ def _params(select) -> list:
     return [pytest.param(c, id=_param_id(c, taken)) for c in readme_commands() if select(c)]
 
 
-def _run_params() -> list:
+def _run_params(first_pages: bool = True) -> list:
     """The concrete commands, each run once: two README commands that run the same argv once their outputs are
-    moved (``bench speed`` and ``bench speed --out DIR``) are one case, whose id is the first and which names both."""
+    moved (``bench speed`` and ``bench speed --out DIR``) are one case, whose id is the first and which names both.
+    ``first_pages``: those first shown on :data:`FIRST_PAGES` (run here), else the others (``test_docs_commands``)."""
     taken: set[str] = set()
     groups: dict[tuple[str, ...], list[Command]] = {}
     for c in readme_commands():
         if c.kind in (PROG, "rl_zoo3") and not c.synopsis:
             groups.setdefault(run_key(c), []).append(c)
-    return [pytest.param(cs[0], tuple(c.text for c in cs[1:]), id=_param_id(cs[0], taken)) for cs in groups.values()]
+    return [pytest.param(cs[0], tuple(c.text for c in cs[1:]), id=_param_id(cs[0], taken)) for cs in groups.values()
+            if (cs[0].page in FIRST_PAGES) == first_pages]
 
 
 # --------------------------------------------------------------------------------------------------------------------
@@ -422,7 +440,10 @@ def prepare(cmd: Command, tmp_path: Path, dry: bool = False) -> list[str]:
             argv += [flag, str(tmp_path / "default" / sub)]
     if cmd.kind == "rl_zoo3":
         return argv + list(ZOO_SMOKE)
-    if name in SMOKE:
+    instead = [more for (sub_name, flag), more in SMOKE_INSTEAD.items() if sub_name == name and _has(cmd.argv, flag)]
+    if instead:
+        argv += instead[0]
+    elif name in SMOKE:
         argv += SMOKE[name]
     elif name not in CHEAP and name and not dry:
         pytest.fail(f"add a smoke entry for {name!r} to SMOKE in {Path(__file__).name} (or to CHEAP if it runs "
@@ -645,6 +666,12 @@ def test_pytest_command_names_declared_markers(cmd: Command):
 
 @pytest.mark.parametrize(("cmd", "also"), _run_params())
 def test_command_runs(cmd: Command, also: tuple[str, ...], tmp_path, capfd, monkeypatch):
+    run_command(cmd, also, tmp_path, capfd, monkeypatch)
+
+
+def run_command(cmd: Command, also: tuple[str, ...], tmp_path, capfd, monkeypatch) -> None:
+    """Run one page's command as :data:`SMOKE` and the rest say, and check it exits as it should, without a
+    traceback (the body of :func:`test_command_runs` and of ``test_docs_commands``'s)."""
     if cmd.kind == "rl_zoo3":
         pytest.importorskip("rl_zoo3")
     else:
@@ -655,6 +682,12 @@ def test_command_runs(cmd: Command, also: tuple[str, ...], tmp_path, capfd, monk
     monkeypatch.chdir(ROOT)
     if _has_words(cmd.argv, NEEDS_CUDA) and not _cuda():
         pytest.skip(f"`{cmd.text}` ({cmd.where}) needs a CUDA GPU (torch sees none here)")
+    for (sub_name, flag), files in SHIPPED_OUTPUTS.items():
+        if sub_name == cmd.name and _has(cmd.argv, flag):
+            out_dir = Path(argv[argv.index("--out") + 1])
+            out_dir.mkdir(parents=True, exist_ok=True)
+            for f in files:
+                shutil.copyfile(ROOT / f, out_dir / Path(f).name)
     for (sub_name, flag), before in PREREQUISITES.items():
         if sub_name == cmd.name and _has(cmd.argv, flag):
             out_flag = argv.index("--out") + 1
@@ -679,8 +712,13 @@ def test_command_runs(cmd: Command, also: tuple[str, ...], tmp_path, capfd, monk
 
 def test_the_repository_is_untouched(status_before):
     """Last (tests run in file order): no command wrote into the repository."""
+    check_untouched(status_before, "README")
+
+
+def check_untouched(status_before: str | None, what: str) -> None:
+    """Print the commands' times and check that ``git status --porcelain`` is what it was before the first ran."""
     if TIMES:
-        print(f"\n{len(TIMES)} README commands ran in {sum(t for _, t in TIMES):.1f} s:")
+        print(f"\n{len(TIMES)} {what} commands ran in {sum(t for _, t in TIMES):.1f} s:")
         for text, wall in sorted(TIMES, key=lambda x: -x[1]):
             print(f"  {wall:6.1f} s  {text}")
     after = _git_status()
@@ -689,6 +727,6 @@ def test_the_repository_is_untouched(status_before):
     before_lines, after_lines = set(status_before.splitlines()), set(after.splitlines())
     changed = sorted(after_lines ^ before_lines)
     assert not changed, (
-        "the README commands changed the repository (git status --porcelain; an edit made by someone else in this "
+        f"the {what} commands changed the repository (git status --porcelain; an edit made by someone else in this "
         "working tree while the tests ran shows up here too):\n"
         + "\n".join(("+ " if ln in after_lines else "- ") + ln for ln in changed))

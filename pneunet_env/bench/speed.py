@@ -534,12 +534,19 @@ def _fmt_rate(x: float) -> str:
     return f"{x:,.0f}"
 
 
+def record_env_id(res: dict[str, Any]) -> str:
+    """The env id a speed record measured (``PneuNetGrasp-v1`` since 0.14; an older record's own, so that
+    ``--plot-only`` redraws any record): the single env's timed env that is not CartPole."""
+    return next((k for k in res["single_env"]["median_step_s"] if k != "CartPole-v1"), "PneuNetGrasp-v1")
+
+
 def format_table(res: dict[str, Any]) -> str:
     """The printed table."""
+    env_id = record_env_id(res)
     s = res["single_env"]
     m = res["machine"]
     lines = [
-        f"PneuNetGrasp-v1 speed ({'quick' if res['quick'] else 'full'} run; backend {res['backend']}; "
+        f"{env_id} speed ({'quick' if res['quick'] else 'full'} run; backend {res['backend']}; "
         f"{m['cpus']} CPUs; numpy {m['numpy']}, gymnasium {m['gymnasium']}, numba {m['numba']}; threading layer "
         f"{m.get('threading_layer') or 'none run'})",
         "",
@@ -557,7 +564,7 @@ def format_table(res: dict[str, Any]) -> str:
     for row in res["vector_env"]:
         r, q = row["steps_per_s"], row["ratio"]
         cells = [f"{_fmt_rate(r[k]):>12}" if k in r else f"{'-':>12}"
-                 for k in ("PneuNetGrasp-v1 random", "PneuNetGrasp-v1 ramp")]
+                 for k in (f"{env_id} random", f"{env_id} ramp")]
         ratios = [f"{q[p]:>12.3f}" if p in q else f"{'-':>12}" for p in ("random", "ramp")]
         lines.append(f"  {row['num_envs']:>6}  {cells[0]}  {cells[1]}  {_fmt_rate(r['CartPole-v1']):>18}  "
                      f"{ratios[0]}  {ratios[1][2:]}")
@@ -575,7 +582,7 @@ def format_table(res: dict[str, Any]) -> str:
         r, q, qv = last["steps_per_s"], last["ratio"], last[f"ratio_{v}"]
         lines += ["", heading]
         for p in qv:
-            default, variant = r[f"PneuNetGrasp-v1 {p}"], r[f"PneuNetGrasp-v1 {p}, {v}"]
+            default, variant = r[f"{env_id} {p}"], r[f"{env_id} {p}, {v}"]
             factor = default / variant if inverse else variant / default
             lines.append(f"  {p:<8}{_fmt_rate(default):>12} ({q[p]:.3f}x)  {word:<7} {_fmt_rate(variant):>12} "
                          f"({qv[p]:.3f}x)   {factor:.2f}{unit}")
@@ -635,8 +642,9 @@ def plot(res: dict[str, Any], path: Path) -> None:
 
     pn_c, cp_c = "#c0392b", "#2c6fbb"
     fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(11, 4.4), gridspec_kw={"width_ratios": [1, 1.6]})
+    env_id = record_env_id(res)
     s = res["single_env"]["median_step_s"]
-    names = ["PneuNetGrasp-v1", "CartPole-v1"]
+    names = [env_id, "CartPole-v1"]
     vals = [s[n] * 1e6 for n in names]
     bars = ax1.bar(names, vals, color=[pn_c, cp_c], width=0.6)
     for b, v in zip(bars, vals, strict=True):
@@ -653,8 +661,8 @@ def plot(res: dict[str, Any], path: Path) -> None:
     rows = res["vector_env"]
     n = np.array([r["num_envs"] for r in rows])
     cp = np.array([r["steps_per_s"]["CartPole-v1"] for r in rows])
-    workloads = [p for p in POLICIES if all(f"PneuNetGrasp-v1 {p}" in r["steps_per_s"] for r in rows)]
-    pn = np.array([[r["steps_per_s"][f"PneuNetGrasp-v1 {p}"] for r in rows] for p in workloads]).reshape(-1, len(n))
+    workloads = [p for p in POLICIES if all(f"{env_id} {p}" in r["steps_per_s"] for r in rows)]
+    pn = np.array([[r["steps_per_s"][f"{env_id} {p}"] for r in rows] for p in workloads]).reshape(-1, len(n))
     for j, p in enumerate(workloads):
         ax2.loglog(n, pn[j], "o-" if p == "random" else "D--", color=pn_c, label=f"PneuNetGraspVectorEnv, {p}")
     ax2.loglog(n, cp, "s-", color=cp_c, label="CartPoleVectorEnv")
@@ -685,7 +693,7 @@ def plot(res: dict[str, Any], path: Path) -> None:
     a = res["accuracy"]
     m = res["machine"]
     fig.suptitle(
-        f"PneuNetGrasp-v1 speed, {m['cpus']} CPUs, backend {res['backend']}: every one of {a['solves']:,} solves "
+        f"{env_id} speed, {m['cpus']} CPUs, backend {res['backend']}: every one of {a['solves']:,} solves "
         f"{'converged' if a['converged_fraction'] == 1 else 'NOT all converged'}, worst |∇U| = "
         f"{a['worst_gradient_norm']:.1e}", fontsize=10,
     )
