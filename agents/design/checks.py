@@ -59,11 +59,12 @@ def run_design_checks(n_objects: int = 200, seed: int = 0, base: EnvConfig | Non
     from agents.design.space import DESIGN_SPACE
     from pneunet_env.config import load_config
 
+    t1 = _t1()
     ends = {b.key: b for b in DESIGN_SPACE if b.key in FINGER_KEYS}
-    finger = {(k, v): evaluate_design(_t1(**{k: v}), seeds, ref, base, seed) for k, b in ends.items()
-              for v in (b.low, b.high) if v != _t1()[k]}
+    finger = {(k, v): evaluate_design({**t1, k: v}, seeds, ref, base, seed) for k, b in ends.items()
+              for v in (b.low, b.high) if v != t1[k]}
     nominal = gent[20.0]  # Table 1's actuator
-    slab = evaluate_design(_t1(), seeds, ref, load_config(base, hold_rule="slab"), seed)
+    slab = evaluate_design(t1, seeds, ref, load_config(base, hold_rule="slab"), seed)
     worst_label = min(nominal.corners, key=lambda k: min(nominal.corners[k]["force"], nominal.corners[k]["position"]))
     worst = nominal.worst_corner
     return [
@@ -86,7 +87,7 @@ def run_design_checks(n_objects: int = 200, seed: int = 0, base: EnvConfig | Non
             f"(10 mm wide, 90 mm long, 2 fingers) {nominal.blind['all']:.0%} / {nominal.blind['force']:.0%}; "
             + "; ".join(f"{_FINGER_LABEL[k]} {v:g}: {s.blind['all']:.0%} / {s.blind['force']:.0%}"
                         for (k, v), s in finger.items()),
-            all(s.blind["all"] >= nominal.blind["all"] - 0.01 for (k, v), s in finger.items() if v > _t1()[k]),
+            all(s.blind["all"] >= nominal.blind["all"] - 0.01 for (k, v), s in finger.items() if v > t1[k]),
             criterion="every end above Table 1's (wider, longer, three fingers) holds no fewer objects than Table 1 "
             "(within one object in a hundred: the blind pressure is re-chosen on a grid)",
             note="so the model's answer for the finger is the top of each sourced range (what bounds it in a lab, "

@@ -204,7 +204,7 @@ def narrowest_object_mm(config: EnvConfig) -> float:
     """The smallest extent (mm) of ``config``'s objects across the finger's width: ``2 R`` of a sphere at the
     smallest radius, a cylinder's or a ring's length (``inf`` where a ring takes the finger's own width). The hold
     rule takes the whole finger's width ``b`` as the contact's, which holds only while ``b`` is no wider than the
-    object: a design study caps ``finger_width_mm`` here (:func:`grip_bounds`)."""
+    object: a design study caps ``finger_width_mm`` here (``agents.design.study._space``)."""
     import numpy as np
 
     oc = config.objects

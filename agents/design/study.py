@@ -110,19 +110,24 @@ class StudySpec:
                 "pressure_error_kpa": float(self.pressure_error_kpa)}
 
 
-def _space(spec: StudySpec) -> dict[str, tuple[float, float]]:
+_INTEGER_KEYS = frozenset(b.key for b in DESIGN_SPACE if b.integer)
+
+
+def _space(spec: StudySpec, base: EnvConfig | None = None) -> dict[str, tuple[float, float]]:
     """Each parameter's range: :data:`DESIGN_SPACE`'s, narrowed by ``--bound``, the finger no wider than the
-    narrowest object (:func:`agents.design.space.narrowest_object_mm`; the hold rule presses the whole width)."""
+    narrowest object of ``base`` (``spec.base_config()`` if ``None``; :func:`agents.design.space.narrowest_object_mm`:
+    the hold rule presses the whole width)."""
     space = {b.key: spec.bounds.get(b.key, (b.low, b.high)) for b in DESIGN_SPACE}
     lo, hi = space["finger_width_mm"]
-    space["finger_width_mm"] = (lo, max(lo, min(hi, narrowest_object_mm(spec.base_config()))))
+    narrowest = narrowest_object_mm(spec.base_config() if base is None else base)
+    space["finger_width_mm"] = (lo, max(lo, min(hi, narrowest)))
     return space
 
 
-def _suggest(trial, spec: StudySpec) -> dict[str, Any]:
-    integer = {b.key for b in DESIGN_SPACE if b.integer}
-    p: dict[str, Any] = {k: trial.suggest_int(k, int(lo), int(hi)) if k in integer else trial.suggest_float(k, lo, hi)
-                         for k, (lo, hi) in _space(spec).items()}
+def _suggest(trial, space: dict[str, tuple[float, float]]) -> dict[str, Any]:
+    """One design from ``space`` (:func:`_space`): the integer parameters as whole numbers, and an elastomer."""
+    p: dict[str, Any] = {k: trial.suggest_int(k, int(lo), int(hi)) if k in _INTEGER_KEYS else
+                         trial.suggest_float(k, lo, hi) for k, (lo, hi) in space.items()}
     p["elastomer"] = trial.suggest_categorical("elastomer", sorted(elastomers()))
     return p
 
@@ -204,12 +209,13 @@ def _objective(spec: StudySpec, seeds: np.ndarray, reference: np.ndarray, parall
                interrupts: _Interrupts | None = None):
     optuna = _optuna()
     base = spec.base_config()
+    space = _space(spec, base)  # once per worker: the config (and a user catalogue) is read here, not per trial
     interrupts = interrupts or _Interrupts()
 
     def objective(trial):
         # first of all: a trial whose process dies from here on is known by its process (:func:`fail_trials_of`)
         trial.set_user_attr("worker", _worker_name())
-        params = _suggest(trial, spec)
+        params = _suggest(trial, space)
         same = _scored_before(trial.study, params, trial.number)
         if same is not None:  # scored already: not run again, and not counted (the budget is of designs)
             trial.set_user_attr("duplicate_of", same.number)
