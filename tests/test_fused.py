@@ -273,6 +273,35 @@ def test_the_single_envs_fast_step_survives_a_copy_and_a_pickle():
         _assert_same_record(env.unwrapped.state, c.unwrapped.state, "state")
 
 
+def test_the_single_step_calls_the_dispatchers_own_compiled_function():
+    """The single step calls its compiled function's entry point directly (no typing of its ten arguments on every
+    call): it must be the dispatcher's own overload for the types of the step's own arrays, in a new env and after a
+    copy and a pickle (whose arrays may differ in type: an unpickled table is writable), and a step through it must
+    be the dispatcher's step, bit for bit. A numba whose dispatcher no longer gives its overload's entry point fails
+    here, not slowly elsewhere."""
+    import copy
+    import pickle
+
+    import numba
+
+    def args(s, a=0.3):
+        return (s._x, a, s._params, s._table, s._c, s._valid, s._f, s._n, s._b, s._obs_rows)
+
+    env = gym.make("PneuNetGrasp-v1").unwrapped
+    env.reset(seed=4)
+    env.step(np.full(1, 0.5, np.float32))
+    unpickled = pickle.loads(pickle.dumps(env))
+    assert unpickled._single._table.flags.writeable != env._single._table.flags.writeable  # another type, asked again
+    for s in (env._single, copy.copy(env)._single, unpickled._single):
+        sig = tuple(numba.typeof(v) for v in args(s))
+        assert s._entry is s._call.get_overload(sig)
+        twin = copy.copy(s)
+        s._advance(0.3)
+        twin._call(*args(twin))  # the dispatcher, typing every argument
+        for name in ("_x", "_f", "_n", "_b", "_obs"):
+            assert np.array_equal(getattr(s, name), getattr(twin, name)), name
+
+
 def test_lean_info_is_the_tables_lean_rows():
     """:func:`pneunet_env.info.lean_info` gives :data:`pneunet_env.info.LEAN_KEYS`, in order: a lean row added to the
     table and not to it fails here."""
@@ -294,17 +323,17 @@ def test_a_ctrl_c_as_the_compiled_call_returns_leaves_the_env_consistent():
     for _ in range(5):
         env.step(a)
     single = env._single
-    call = single._call
+    call = single._entry
 
     def interrupted(*args):
         call(*args)
         raise KeyboardInterrupt
 
-    single._call = interrupted
+    single._entry = interrupted
     before = env.state
     with pytest.raises(KeyboardInterrupt):
         env.step(a)
-    single._call = call
+    single._entry = call
     assert env.state is before
     _, _, _, _, info = env.step(a)
     assert info["step"] == before.task.step + 1

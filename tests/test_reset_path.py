@@ -190,3 +190,68 @@ def test_the_solve_at_rest_touches_no_object_so_the_env_solves_it_once():
     obj = env.state.obj
     assert env._rest_contact(0.0, 0.0, 0.0, 0.3, obj, p) == task.newton_contact(0.0, 0.0, 0.0, 0.3, obj, p)
     env.close()
+
+
+@pytest.mark.parametrize("name", ["kitchen", "ranges", "paper", "ranges_cylinder"])
+def test_one_objects_info_is_object_infos(name):
+    """``object_info_one`` (written out, for a single env's reset) against the table's ``object_info``: the same keys
+    in the same order, the same values of the same types, over many objects, pinned ones included."""
+    cfg = load_config(**CONFIGS[name])
+    tp = task.TaskParams.from_config(cfg)
+    rng = np.random.default_rng(11)
+    for i in range(200):
+        obj = task.sample_object(rng, cfg, pinned=PINS[i % len(PINS)])
+        th = task.object_thresholds(obj, tp)
+        one, ref = pneunet_env.info.object_info_one(obj, th, tp), task.object_info(obj, th, tp)
+        assert list(one) == list(ref) == list(task.OBJECT_KEYS)
+        for k, v in ref.items():
+            assert type(one[k]) is type(v) and _bits(one[k]) == _bits(v), k
+
+
+class _BasePathEnv(pneunet_env.PneuNetGraspEnv):
+    """The env with a hook of its own (doing what the base's does): it must take the base's reset path."""
+
+    calls = 0
+
+    def _after_reset(self, obj, options):
+        type(self).calls += 1
+        super()._after_reset(obj, options)
+
+
+def _types_and_bits(x):
+    if isinstance(x, tuple):  # records: field for field
+        return tuple(_types_and_bits(v) for v in x)
+    if isinstance(x, (float, int, bool, np.floating)):
+        return type(x), _bits(x)
+    return type(x), x
+
+
+@pytest.mark.parametrize("name", ["kitchen", "ranges", "paper"])
+@pytest.mark.parametrize("volume", [False, True])
+def test_the_written_out_reset_is_the_base_path(name, volume):
+    """The single env's reset written out (``_begin_episode``) against the base's path (the hooks in turn, the info
+    from the table), which an env with a hook of its own takes: the same observation, info, state (every field of
+    every record, its type and its bits) and frame label, over seeds and pins; and the episodes that follow alike."""
+    kwargs = dict(CONFIGS[name], observe_volume=volume)
+    fast = gym.make("PneuNetGrasp-v1", **kwargs).unwrapped
+    base = _BasePathEnv(**kwargs)
+    assert fast._own_reset and not base._own_reset
+    before = _BasePathEnv.calls
+    for seed in range(60):
+        options = PINS[seed % len(PINS)]
+        (o1, i1), (o2, i2) = fast.reset(seed=seed, options=options), base.reset(seed=seed, options=options)
+        assert o1.dtype == o2.dtype == np.float32 and _bits(o1) == _bits(o2)
+        assert list(i1) == list(i2) and all(_types_and_bits(i1[k]) == _types_and_bits(i2[k]) for k in i1)
+        s1, s2 = fast.state, base.state
+        assert s1.obj == s2.obj and _types_and_bits(s1.command) == _types_and_bits(s2.command)
+        for r1, r2 in ((s1.eq, s2.eq), (s1.thresholds, s2.thresholds), (s1.task, s2.task)):
+            assert _types_and_bits(r1) == _types_and_bits(r2)
+        assert fast._render_name == base._render_name and fast._static_info == base._static_info
+        o1[...] = 0.5  # the observation is the caller's: the next reset's is not changed by it
+        for a in (0.7, 0.3, -0.2):
+            r1, r2 = fast.step(a), base.step(a)
+            assert _bits(r1[0]) == _bits(r2[0]) and r1[1:4] == r2[1:4]
+    assert _BasePathEnv.calls - before == 60
+    assert _bits(fast.reset(seed=0)[0]) == _bits(base.reset(seed=0)[0])
+    fast.close()
+    base.close()

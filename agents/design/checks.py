@@ -56,13 +56,15 @@ def run_design_checks(n_objects: int = 200, seed: int = 0, base: EnvConfig | Non
     tforce = {h: s.blind["force"] for h, s in top.items()}
     fmt = lambda d, f: ", ".join(f"{k:g}: {f(v)}" for k, v in d.items())  # noqa: E731
     pct = lambda v: f"{v:.0%}"  # noqa: E731
-    from agents.design.space import DESIGN_SPACE
+    from agents.design.space import DESIGN_SPACE, finger_width_range
     from pneunet_env.config import load_config
 
     t1 = _t1()
-    ends = {b.key: b for b in DESIGN_SPACE if b.key in FINGER_KEYS}
-    finger = {(k, v): evaluate_design({**t1, k: v}, seeds, ref, base, seed) for k, b in ends.items()
-              for v in (b.low, b.high) if v != t1[k]}
+    # each range's ends; the finger's width no wider than the narrowest object, as in a study (finger_width_range)
+    ends = {b.key: (b.low, b.high) for b in DESIGN_SPACE if b.key in FINGER_KEYS}
+    ends["finger_width_mm"] = finger_width_range({}, base)
+    finger = {(k, v): evaluate_design({**t1, k: v}, seeds, ref, base, seed) for k, vs in ends.items()
+              for v in dict.fromkeys(vs) if v != t1[k]}
     nominal = gent[20.0]  # Table 1's actuator
     slab = evaluate_design(t1, seeds, ref, load_config(base, hold_rule="slab"), seed)
     worst_label = min(nominal.corners, key=lambda k: min(nominal.corners[k]["force"], nominal.corners[k]["position"]))

@@ -217,6 +217,23 @@ def narrowest_object_mm(config: EnvConfig) -> float:
     return math.inf if oc.object_length_mm is None else float(oc.object_length_mm)
 
 
+def finger_width_range(bounds: Mapping[str, tuple[float, float]], config: EnvConfig) -> tuple[float, float]:
+    """The finger widths (mm) a study may try: :data:`DESIGN_SPACE`'s range (narrowed by ``bounds``, ``--bound``'s),
+    capped at ``config``'s narrowest object (:func:`narrowest_object_mm`). A ``ValueError`` naming both where even the
+    narrowest width is wider than that object: the hold rule would then press more finger on the object than it has,
+    and no width in the range is one the model covers (a study is refused, not run at a width its rule misreads)."""
+    b = next(b for b in DESIGN_SPACE if b.key == "finger_width_mm")
+    lo, hi = bounds.get("finger_width_mm", (b.low, b.high))
+    narrowest = narrowest_object_mm(config)
+    if narrowest < lo:
+        raise ValueError(f"the narrowest object is {narrowest:g} mm across, narrower than the narrowest finger "
+                         f"width tried, finger_width_mm = {lo:g} mm (its sourced range is {b.low:g}..{b.high:g} mm): "
+                         "the hold rule presses the finger's whole width on the object, so it would overstate the "
+                         f"grip. Leave out the objects under {lo:g} mm across (a catalogue's class, or a range's "
+                         "smallest radii)")
+    return lo, min(hi, narrowest)
+
+
 def chamber_depth_mm(finger_width_mm: float, side_thickness_mm: float) -> float:
     """The cavity's out-of-plane depth ``t = b - 2 h_s`` (mm) of a finger ``b`` wide with side walls ``h_s``; a
     ``ValueError`` naming both where it leaves less than :data:`MIN_DEPTH_MM` of cavity."""

@@ -32,7 +32,7 @@ from agents.design.space import (
     WALL_ERROR,
     WINDOW_POINTS,
     elastomers,
-    narrowest_object_mm,
+    finger_width_range,
     table1_design,
     validity,
 )
@@ -77,7 +77,8 @@ class StudySpec:
             raise ValueError(f"seed must be an integer >= 0, got {self.seed!r}")
         if self.sampler not in ("tpe", "nsga2"):
             raise ValueError(f"sampler must be 'tpe' or 'nsga2', got {self.sampler!r}")
-        self.base_config()  # the use case and weights are checked here, before any work
+        _space(self)  # the use case, weights and bounds are checked here (the finger against the objects), before
+        # any work
 
     def base_config(self) -> EnvConfig:
         """The env config the designs change: ``config`` (the defaults without it) with the objects of ``use_case``
@@ -115,12 +116,10 @@ _INTEGER_KEYS = frozenset(b.key for b in DESIGN_SPACE if b.integer)
 
 def _space(spec: StudySpec, base: EnvConfig | None = None) -> dict[str, tuple[float, float]]:
     """Each parameter's range: :data:`DESIGN_SPACE`'s, narrowed by ``--bound``, the finger no wider than the
-    narrowest object of ``base`` (``spec.base_config()`` if ``None``; :func:`agents.design.space.narrowest_object_mm`:
+    narrowest object of ``base`` (``spec.base_config()`` if ``None``; :func:`agents.design.space.finger_width_range`:
     the hold rule presses the whole width)."""
     space = {b.key: spec.bounds.get(b.key, (b.low, b.high)) for b in DESIGN_SPACE}
-    lo, hi = space["finger_width_mm"]
-    narrowest = narrowest_object_mm(spec.base_config() if base is None else base)
-    space["finger_width_mm"] = (lo, max(lo, min(hi, narrowest)))
+    space["finger_width_mm"] = finger_width_range(spec.bounds, spec.base_config() if base is None else base)
     return space
 
 

@@ -7,6 +7,7 @@ import json
 
 import numpy as np
 import pytest
+import yaml
 
 optuna = pytest.importorskip("optuna")
 
@@ -264,6 +265,28 @@ def test_the_designed_finger_is_no_wider_than_the_narrowest_object(tmp_path):
     space = {b.key: b for b in DESIGN_SPACE}
     assert lo == space["finger_width_mm"].low and hi == min(space["finger_width_mm"].high,
                                                             narrowest_object_mm(cap.base_config()))
+
+
+def test_a_finger_wider_than_every_width_allowed_is_refused_by_name(tmp_path):
+    """Objects narrower than the narrowest finger width (10 mm): the hold rule would press more finger on them than they
+    have, so a study (and the checks' width sweep) is refused with both sizes named, before any work, not run with the
+    width silently left above the object (0.15 kept the range's low end)."""
+    from agents.design.space import finger_width_range
+    from agents.design.study import StudySpec
+
+    small = {"use_case": None, "object_curvature_per_m": [150.0, 250.0], "object_thickness_mm": [1.0, 3.0],
+             "shape": "sphere"}
+    path = tmp_path / "small.yaml"
+    path.write_text(yaml.safe_dump({"objects": small}))
+    with pytest.raises(ValueError, match=r"narrowest object is 8 mm across.*finger_width_mm = 10 mm"):
+        finger_width_range({}, load_config(**small))
+    with pytest.raises(ValueError, match=r"narrowest object is 8 mm across"):
+        StudySpec(out=tmp_path / "study", use_case=None, config=str(path))
+    # objects 12 mm across: the range is capped there, and a --bound above them leaves no width
+    mid = load_config(**{**small, "object_curvature_per_m": [150.0, 166.0]})
+    assert finger_width_range({}, mid) == (10.0, pytest.approx(2e3 / 166.0))
+    with pytest.raises(ValueError, match=r"finger_width_mm = 15 mm"):
+        finger_width_range({"finger_width_mm": (15.0, 20.0)}, mid)
 
 
 @pytest.mark.slow
