@@ -10,7 +10,7 @@ from pneunet_env.envs.grasp import PneuNetGraspEnv
 from pneunet_env.physics.params import ActuatorParams
 from pneunet_env.physics.solver import Equilibrium, LoadPath, SolverOptions, load_path, solve_equilibrium
 
-__version__ = "0.15.0"
+__version__ = "0.16.0"
 
 __all__ = [
     "ActuatorParams",

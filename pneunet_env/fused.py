@@ -500,7 +500,7 @@ class SingleStep:
     def _entry_point(self):
         """The compiled call for the types of this instance's own arrays (compiled or loaded from the disk cache now,
         not at the first step): called directly, without the dispatcher's typing of its ten arguments on every call
-        (about 1.2 us of a 7 us step). Safe only because its arguments are always these arrays (their types fixed
+        (0.6-1.0 us of a 7 us step). Safe only because its arguments are always these arrays (their types fixed
         until a copy or an unpickling, which ask again) and a float; a test checks that it is the dispatcher's own
         compiled function for them (``Dispatcher.compile`` gives the overload's entry point)."""
         import numba
