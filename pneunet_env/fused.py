@@ -507,6 +507,8 @@ class SingleStep:
 
         args = (self._x, 0.0, self._params, self._table, self._c, self._valid, self._f, self._n, self._b,
                 self._obs_rows)
+        if not hasattr(self._call, "compile"):  # numba's own NUMBA_DISABLE_JIT=1: njit gave the Python function
+            return self._call
         return self._call.compile(tuple(numba.typeof(a) for a in args))
 
     def __getstate__(self) -> dict[str, Any]:

@@ -226,7 +226,7 @@ def _types_and_bits(x):
     return type(x), x
 
 
-@pytest.mark.parametrize("name", ["kitchen", "ranges", "paper"])
+@pytest.mark.parametrize("name", ["kitchen", "ranges", "paper", "lab_bench", "ranges_ring"])
 @pytest.mark.parametrize("volume", [False, True])
 def test_the_written_out_reset_is_the_base_path(name, volume):
     """The single env's reset written out (``_begin_episode``) against the base's path (the hooks in turn, the info
@@ -246,7 +246,8 @@ def test_the_written_out_reset_is_the_base_path(name, volume):
         assert s1.obj == s2.obj and _types_and_bits(s1.command) == _types_and_bits(s2.command)
         for r1, r2 in ((s1.eq, s2.eq), (s1.thresholds, s2.thresholds), (s1.task, s2.task)):
             assert _types_and_bits(r1) == _types_and_bits(r2)
-        assert fast._render_name == base._render_name and fast._static_info == base._static_info
+        assert fast._render_name == base._render_name and list(fast._static_info) == list(base._static_info)
+        assert all(_types_and_bits(v) == _types_and_bits(base._static_info[k]) for k, v in fast._static_info.items())
         o1[...] = 0.5  # the observation is the caller's: the next reset's is not changed by it
         for a in (0.7, 0.3, -0.2):
             r1, r2 = fast.step(a), base.step(a)
@@ -255,3 +256,52 @@ def test_the_written_out_reset_is_the_base_path(name, volume):
     assert _bits(fast.reset(seed=0)[0]) == _bits(base.reset(seed=0)[0])
     fast.close()
     base.close()
+
+
+def test_an_env_with_its_own_rest_contact_takes_the_base_path():
+    """``_rest_contact`` is a hook of the reset too (the base path's ``_reset_state`` asks it): a subclass with its own
+    is asked at every reset."""
+    calls = []
+
+    class Counting(pneunet_env.PneuNetGraspEnv):
+        def _rest_contact(self, *args):
+            calls.append(1)
+            return super()._rest_contact(*args)
+
+    env = Counting()
+    assert not env._own_reset
+    env.reset(seed=0)
+    env.reset(seed=1)
+    assert len(calls) == 2
+
+
+def test_an_env_pickled_without_the_written_out_reset_resets_by_the_base_path():
+    """An env pickled before 0.16 has no ``_own_reset`` nor ``_rest_obs``: it resets (by the base's path) and steps."""
+    import pickle
+
+    env = gym.make("PneuNetGrasp-v1").unwrapped
+    env.reset(seed=0)
+    old = pickle.loads(pickle.dumps(env))
+    for name in ("_own_reset", "_rest_obs"):
+        del old.__dict__[name]
+    assert old._own_reset is False and old._rest_obs is None
+    obs, info = old.reset(seed=3)
+    want_obs, want_info = env.reset(seed=3)
+    assert _bits(obs) == _bits(want_obs) and list(info) == list(want_info)
+    old.step(np.full(1, 0.5, np.float32))
+
+
+def test_the_env_runs_under_numbas_own_disable_jit(tmp_path):
+    """``NUMBA_DISABLE_JIT=1`` (numba's switch: ``njit`` gives the Python function back) leaves the env working: the
+    single step calls that function, as it calls the compiled one otherwise."""
+    import subprocess
+
+    code = ("import gymnasium as gym, numpy as np, pneunet_env\n"
+            "env = gym.make('PneuNetGrasp-v1', use_case=None)\n"
+            "obs, _ = env.reset(seed=0)\n"
+            "obs, *_ = env.step(np.ones(1, np.float32))\n"
+            "print(float(obs[0]))\n")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=300,
+                         env={**__import__("os").environ, "NUMBA_DISABLE_JIT": "1"}, cwd=tmp_path)
+    assert out.returncode == 0, out.stderr[-2000:]
+    assert float(out.stdout.split()[-1]) == pytest.approx(3.0 / 60.0, rel=1e-6)

@@ -41,8 +41,13 @@ def _t1(**changes: Any) -> dict[str, Any]:
 def run_design_checks(n_objects: int = 200, seed: int = 0, base: EnvConfig | None = None) -> list[CheckResult]:
     """Measure every statement on ``n_objects`` search objects of ``base``'s use case (the default task's kitchen)."""
     from agents.design.score import evaluate_design, reference_regimes
+    from agents.design.space import DESIGN_SPACE, finger_width_range
     from agents.evaluation.batch import episode_seeds
+    from pneunet_env.config import load_config
 
+    # each finger range's ends; the width no wider than the narrowest object, as in a study (refused first, by name)
+    ends = {b.key: (b.low, b.high) for b in DESIGN_SPACE if b.key in FINGER_KEYS}
+    ends["finger_width_mm"] = finger_width_range({}, load_config() if base is None else base)
     seeds = episode_seeds(n_objects, seed)
     ref = reference_regimes(seeds, base)
     gent = {j: evaluate_design(_t1(gent_limit=j), seeds, ref, base, seed) for j in GENT_SWEEP}
@@ -56,13 +61,7 @@ def run_design_checks(n_objects: int = 200, seed: int = 0, base: EnvConfig | Non
     tforce = {h: s.blind["force"] for h, s in top.items()}
     fmt = lambda d, f: ", ".join(f"{k:g}: {f(v)}" for k, v in d.items())  # noqa: E731
     pct = lambda v: f"{v:.0%}"  # noqa: E731
-    from agents.design.space import DESIGN_SPACE, finger_width_range
-    from pneunet_env.config import load_config
-
     t1 = _t1()
-    # each range's ends; the finger's width no wider than the narrowest object, as in a study (finger_width_range)
-    ends = {b.key: (b.low, b.high) for b in DESIGN_SPACE if b.key in FINGER_KEYS}
-    ends["finger_width_mm"] = finger_width_range({}, base)
     finger = {(k, v): evaluate_design({**t1, k: v}, seeds, ref, base, seed) for k, vs in ends.items()
               for v in dict.fromkeys(vs) if v != t1[k]}
     nominal = gent[20.0]  # Table 1's actuator

@@ -207,6 +207,8 @@ class PneuNetGraspEnv(SingleGraspEnv):
 
     env_id = "PneuNetGrasp-v1"
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 20}
+    _own_reset = False  # (set in __init__; an env pickled before 0.16 has none, and takes the base's reset)
+    _rest_obs: np.ndarray | None = None
 
     def __init__(self, render_mode: str | None = None, config: Any = None, info_level: str = "lean",
                  **overrides: Any) -> None:
@@ -221,7 +223,8 @@ class PneuNetGraspEnv(SingleGraspEnv):
         # the reset written out (_begin_episode) where no hook it stands for is a subclass's own
         self._own_reset = self._own_step and all(
             getattr(cls, name) is getattr(PneuNetGraspEnv, name)
-            for name in ("_begin_episode", "_accept_object", "_reset_state", "_after_reset", "_reset_info"))
+            for name in ("_begin_episode", "_accept_object", "_reset_state", "_rest_contact", "_after_reset",
+                         "_reset_info"))
         self._rest: Solve | None = None  # the solve at rest (see _rest_contact)
         self._rest_obs: np.ndarray | None = None  # the observation at rest (the same for every object)
         self._class_names = task.class_names(self.config)

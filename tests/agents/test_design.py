@@ -289,6 +289,24 @@ def test_a_finger_wider_than_every_width_allowed_is_refused_by_name(tmp_path):
         finger_width_range({"finger_width_mm": (15.0, 20.0)}, mid)
 
 
+def test_the_design_checks_refuse_small_objects_before_any_work(monkeypatch):
+    """``run_design_checks`` sweeps the finger's width to the narrowest object, refused by name first (no design is
+    scored), whatever its ``base``; ``base=None`` is the default task's (it read ``None.objects`` once)."""
+    import agents.design.score as score
+    from agents.design.checks import run_design_checks
+
+    def no_work(*args, **kwargs):
+        raise AssertionError("a design was scored before the width was checked")
+
+    monkeypatch.setattr(score, "reference_regimes", no_work)
+    small = load_config(use_case=None, object_curvature_per_m=[150.0, 250.0], object_thickness_mm=[1.0, 3.0],
+                        shape="sphere")
+    with pytest.raises(ValueError, match=r"narrowest object is 8 mm across"):
+        run_design_checks(4, 0, small)
+    with pytest.raises(AssertionError, match="scored before"):  # the default task passed the check, then worked
+        run_design_checks(4, 0, None)
+
+
 @pytest.mark.slow
 def test_bench_design_prints_figures(tmp_path, capsys):
     from agents.bench.design import main as bench
