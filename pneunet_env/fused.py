@@ -495,14 +495,21 @@ class SingleStep:
         self._state: task.EnvState | None = None  # the record of the state self._x holds (None: not built)
         self._obj: Any = None  # the object and thresholds of the state self._x holds
         self._thresholds: Thresholds | None = None
+        self._entry = self._first_call  # the compiled call (see _entry_point), found at the first step
+
+    def _first_call(self, *args) -> None:
+        """The first step's call: through numba's dispatcher, which compiles the step for these arrays' types (or
+        loads it from the disk cache), then the entry point (:meth:`_entry_point`) for every later step. An env made
+        and never stepped compiles nothing."""
+        self._call(*args)
         self._entry = self._entry_point()
 
     def _entry_point(self):
-        """The compiled call for the types of this instance's own arrays (compiled or loaded from the disk cache now,
-        not at the first step): called directly, without the dispatcher's typing of its ten arguments on every call
-        (0.6-1.0 us of a 7 us step). Safe only because its arguments are always these arrays (their types fixed
-        until a copy or an unpickling, which ask again) and a float; a test checks that it is the dispatcher's own
-        compiled function for them (``Dispatcher.compile`` gives the overload's entry point)."""
+        """The compiled call for the types of this instance's own arrays (compiled already, by the first step):
+        called directly, without the dispatcher's typing of its ten arguments on every call (0.6-1.0 us of a 7 us
+        step). Safe only because its arguments are always these arrays (their types fixed until a copy or an
+        unpickling, which ask again) and a float; a test checks that it is the dispatcher's own compiled function
+        for them (``Dispatcher.compile`` gives the overload's entry point)."""
         import numba
 
         args = (self._x, 0.0, self._params, self._table, self._c, self._valid, self._f, self._n, self._b,
@@ -522,7 +529,7 @@ class SingleStep:
         self.__dict__.update(state)
         self._call = _single_for(*self._key)
         self._obs_rows = self._obs.reshape(1, -1)
-        self._entry = self._entry_point()
+        self._entry = self._first_call
 
     def __copy__(self) -> SingleStep:
         """A copy with its own packed state, cache and scratch arrays (the records, immutable, are shared)."""
@@ -531,7 +538,7 @@ class SingleStep:
         for name in ("_x", "_c", "_valid", "_f", "_n", "_b", "_obs"):
             setattr(new, name, getattr(self, name).copy())
         new._obs_rows = new._obs.reshape(1, -1)
-        new._entry = new._entry_point()
+        new._entry = new._first_call  # (not the original's: a bound method would step the original's arrays' owner)
         return new
 
     def load(self, state: task.EnvState) -> None:

@@ -292,7 +292,10 @@ def test_the_single_step_calls_the_dispatchers_own_compiled_function():
     env.step(np.full(1, 0.5, np.float32))
     unpickled = pickle.loads(pickle.dumps(env))
     assert unpickled._single._table.flags.writeable != env._single._table.flags.writeable  # another type, asked again
+    fresh = gym.make("PneuNetGrasp-v1").unwrapped
+    assert fresh._single._entry == fresh._single._first_call  # made, not stepped: nothing compiled for it yet
     for s in (env._single, copy.copy(env)._single, unpickled._single):
+        s._advance(0.3)  # (a copy's and an unpickled env's first step finds their entry point)
         sig = tuple(numba.typeof(v) for v in args(s))
         assert s._entry is s._call.get_overload(sig)
         twin = copy.copy(s)
