@@ -512,10 +512,10 @@ class SingleStep:
         for them (``Dispatcher.compile`` gives the overload's entry point)."""
         import numba
 
-        args = (self._x, 0.0, self._params, self._table, self._c, self._valid, self._f, self._n, self._b,
-                self._obs_rows)
         if not hasattr(self._call, "compile"):  # numba's own NUMBA_DISABLE_JIT=1: njit gave the Python function
             return self._call
+        args = (self._x, 0.0, self._params, self._table, self._c, self._valid, self._f, self._n, self._b,
+                self._obs_rows)
         return self._call.compile(tuple(numba.typeof(a) for a in args))
 
     def __getstate__(self) -> dict[str, Any]:

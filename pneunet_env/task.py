@@ -192,10 +192,16 @@ class TaskState(NamedTuple):
 
 
 def initial_state(ops: Ops = SCALAR, like=None) -> TaskState:
-    """The task state at ``reset`` on the namespace ``ops``: Python scalars, or arrays of ``like``'s shape (and
-    device)."""
+    """The task state at ``reset`` on the namespace ``ops``: Python scalars (one record, immutable, shared by every
+    single env's reset), or arrays of ``like``'s shape (and device)."""
+    if ops is SCALAR:
+        return _SCALAR_START
     return TaskState(ops.full_like(like, 0, "int"), ops.full_like(like, False, "bool"),
                      ops.full_like(like, False, "bool"), ops.full_like(like, 0.0, "float"))
+
+
+_SCALAR_START = TaskState(0, False, False, 0.0)
+"""The task state at reset of one env (``SCALAR.full_like``'s values: an int, two bools, a float)."""
 
 
 class Touch(NamedTuple):

@@ -208,14 +208,17 @@ def test_one_objects_info_is_object_infos(name):
             assert type(one[k]) is type(v) and _bits(one[k]) == _bits(v), k
 
 
-class _BasePathEnv(pneunet_env.PneuNetGraspEnv):
-    """The env with a hook of its own (doing what the base's does): it must take the base's reset path."""
+class _ReferenceEnv(pneunet_env.PneuNetGraspEnv):
+    """The reset by the pure functions alone: ``task.reset_state`` with the Newton contact (the solve at rest solved at
+    every reset, not kept), the object's constants from the info table (``task.object_info``)."""
 
-    calls = 0
+    def _reset_state(self, obj):
+        return task.reset_state(obj, self._params, task.newton_contact)
 
     def _after_reset(self, obj, options):
-        type(self).calls += 1
         super()._after_reset(obj, options)
+        name = self._static_info["object_class"]
+        self._static_info = {**task.object_info(obj, self._state.thresholds, self._params.task), "object_class": name}
 
 
 def _types_and_bits(x):
@@ -228,39 +231,37 @@ def _types_and_bits(x):
 
 @pytest.mark.parametrize("name", ["kitchen", "ranges", "paper", "lab_bench", "ranges_ring"])
 @pytest.mark.parametrize("volume", [False, True])
-def test_the_written_out_reset_is_the_base_path(name, volume):
-    """The single env's reset written out (``_begin_episode``) against the base's path (the hooks in turn, the info
-    from the table), which an env with a hook of its own takes: the same observation, info, state (every field of
-    every record, its type and its bits) and frame label, over seeds and pins; and the episodes that follow alike."""
+def test_the_reset_is_the_pure_functions(name, volume):
+    """The single env's reset (its hooks: the solve at rest kept, the object's constants from ``object_info_one``, the
+    task state at reset one shared record) against the pure functions (``task.reset_state`` with the Newton contact,
+    the info table): the same observation, info, state (every field of every record, its type and its bits) and
+    frame label, over seeds and pins; and the episodes that follow alike."""
     kwargs = dict(CONFIGS[name], observe_volume=volume)
-    fast = gym.make("PneuNetGrasp-v1", **kwargs).unwrapped
-    base = _BasePathEnv(**kwargs)
-    assert fast._own_reset and not base._own_reset
-    before = _BasePathEnv.calls
+    env = gym.make("PneuNetGrasp-v1", **kwargs).unwrapped
+    ref = _ReferenceEnv(**kwargs)
     for seed in range(60):
         options = PINS[seed % len(PINS)]
-        (o1, i1), (o2, i2) = fast.reset(seed=seed, options=options), base.reset(seed=seed, options=options)
+        (o1, i1), (o2, i2) = env.reset(seed=seed, options=options), ref.reset(seed=seed, options=options)
         assert o1.dtype == o2.dtype == np.float32 and _bits(o1) == _bits(o2)
         assert list(i1) == list(i2) and all(_types_and_bits(i1[k]) == _types_and_bits(i2[k]) for k in i1)
-        s1, s2 = fast.state, base.state
+        s1, s2 = env.state, ref.state
         assert s1.obj == s2.obj and _types_and_bits(s1.command) == _types_and_bits(s2.command)
         for r1, r2 in ((s1.eq, s2.eq), (s1.thresholds, s2.thresholds), (s1.task, s2.task)):
             assert _types_and_bits(r1) == _types_and_bits(r2)
-        assert fast._render_name == base._render_name and list(fast._static_info) == list(base._static_info)
-        assert all(_types_and_bits(v) == _types_and_bits(base._static_info[k]) for k, v in fast._static_info.items())
+        assert env._render_name == ref._render_name and list(env._static_info) == list(ref._static_info)
+        assert all(_types_and_bits(v) == _types_and_bits(ref._static_info[k]) for k, v in env._static_info.items())
         o1[...] = 0.5  # the observation is the caller's: the next reset's is not changed by it
         for a in (0.7, 0.3, -0.2):
-            r1, r2 = fast.step(a), base.step(a)
+            r1, r2 = env.step(a), ref.step(a)
             assert _bits(r1[0]) == _bits(r2[0]) and r1[1:4] == r2[1:4]
-    assert _BasePathEnv.calls - before == 60
-    assert _bits(fast.reset(seed=0)[0]) == _bits(base.reset(seed=0)[0])
-    fast.close()
-    base.close()
+    assert _bits(env.reset(seed=0)[0]) == _bits(ref.reset(seed=0)[0])
+    env.close()
+    ref.close()
 
 
-def test_an_env_with_its_own_rest_contact_takes_the_base_path():
-    """``_rest_contact`` is a hook of the reset too (the base path's ``_reset_state`` asks it): a subclass with its own
-    is asked at every reset."""
+def test_an_env_with_its_own_rest_contact_is_asked_at_every_reset():
+    """``_rest_contact`` is a hook of the reset (``_reset_state`` asks it): a subclass's own is asked at every
+    reset."""
     calls = []
 
     class Counting(pneunet_env.PneuNetGraspEnv):
@@ -269,26 +270,9 @@ def test_an_env_with_its_own_rest_contact_takes_the_base_path():
             return super()._rest_contact(*args)
 
     env = Counting()
-    assert not env._own_reset
     env.reset(seed=0)
     env.reset(seed=1)
     assert len(calls) == 2
-
-
-def test_an_env_pickled_without_the_written_out_reset_resets_by_the_base_path():
-    """An env pickled before 0.16 has no ``_own_reset`` nor ``_rest_obs``: it resets (by the base's path) and steps."""
-    import pickle
-
-    env = gym.make("PneuNetGrasp-v1").unwrapped
-    env.reset(seed=0)
-    old = pickle.loads(pickle.dumps(env))
-    for name in ("_own_reset", "_rest_obs"):
-        del old.__dict__[name]
-    assert old._own_reset is False and old._rest_obs is None
-    obs, info = old.reset(seed=3)
-    want_obs, want_info = env.reset(seed=3)
-    assert _bits(obs) == _bits(want_obs) and list(info) == list(want_info)
-    old.step(np.full(1, 0.5, np.float32))
 
 
 def test_the_env_runs_under_numbas_own_disable_jit(tmp_path):
@@ -305,3 +289,15 @@ def test_the_env_runs_under_numbas_own_disable_jit(tmp_path):
                          env={**__import__("os").environ, "NUMBA_DISABLE_JIT": "1"}, cwd=tmp_path)
     assert out.returncode == 0, out.stderr[-2000:]
     assert float(out.stdout.split()[-1]) == pytest.approx(3.0 / 60.0, rel=1e-6)
+
+
+def test_the_task_state_at_reset_of_one_env_is_full_likes():
+    """One env's task state at reset is one shared record: the values, and the types, that ``SCALAR.full_like`` gives
+    (an int, two bools, a float), as for every other namespace."""
+    from pneunet_env.physics.xp import SCALAR
+
+    want = task.TaskState(SCALAR.full_like(None, 0, "int"), SCALAR.full_like(None, False, "bool"),
+                          SCALAR.full_like(None, False, "bool"), SCALAR.full_like(None, 0.0, "float"))
+    got = task.initial_state()
+    assert got is task.initial_state(SCALAR, 1.0)
+    assert _types_and_bits(got) == _types_and_bits(want)

@@ -141,22 +141,16 @@ class SingleGraspEnv(gym.Env):
         self._ended = False
         if options is not None and not isinstance(options, dict):
             raise ValueError(f"options must be a dict of object properties to pin, got {options!r}")
-        obs, info = self._begin_episode(options)
-        if self.render_mode == "human":
-            self.render()
-        return obs, info
-
-    def _begin_episode(self, options: dict[str, Any] | None) -> tuple[np.ndarray, dict[str, Any]]:
-        """The new episode's object (from ``self.np_random``, ``options`` pinning its properties), its state, and the
-        reset's observation and info: :meth:`_accept_object`, :meth:`_reset_state`, :meth:`_after_reset` and
-        :meth:`_info` in turn (a subclass may compute the same faster)."""
         obj = task.sample_object(self.np_random, self.config, pinned=options)
         self._accept_object(obj)
         self._state = state = self._reset_state(obj)
         self._after_reset(obj, options)
         p = self._params
         obs = task.observation(state.command, state.eq.volume_change, p.task, p.volume_scale)
-        return obs, self._info(None)
+        info = self._info(None)
+        if self.render_mode == "human":
+            self.render()
+        return obs, info
 
     def step(self, action):
         """One step of :func:`pneunet_env.task.step`. A torch tensor is read as its value (detached)."""

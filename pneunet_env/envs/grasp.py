@@ -28,8 +28,6 @@ _RESET_KEYS = tuple(k for k in task.FULL_KEYS if k in task.LEAN_KEYS or k in tas
 """The keys of a lean reset info, in :func:`pneunet_env.task.build_info`'s order (the table's)."""
 _RESET_TEMPLATE = dict.fromkeys(_RESET_KEYS)
 """A lean reset info's keys in their order, each value ``None`` (copied and filled in at every reset)."""
-_START = task.initial_state()
-"""The task state at reset of one env (Python scalars: immutable, shared by every episode's record)."""
 
 
 class PneuNetGraspEnv(SingleGraspEnv):
@@ -207,8 +205,6 @@ class PneuNetGraspEnv(SingleGraspEnv):
 
     env_id = "PneuNetGrasp-v1"
     metadata = {"render_modes": ["human", "rgb_array"], "render_fps": 20}
-    _own_reset = False  # (set in __init__; an env pickled before 0.16 has none, and takes the base's reset)
-    _rest_obs: np.ndarray | None = None
 
     def __init__(self, render_mode: str | None = None, config: Any = None, info_level: str = "lean",
                  **overrides: Any) -> None:
@@ -220,13 +216,7 @@ class PneuNetGraspEnv(SingleGraspEnv):
         self._single = fused.SingleStep(self._params) if fused.HAVE_FUSED else None
         cls = type(self)
         self._own_step = cls._step_state is PneuNetGraspEnv._step_state and cls._info is PneuNetGraspEnv._info
-        # the reset written out (_begin_episode) where no hook it stands for is a subclass's own
-        self._own_reset = self._own_step and all(
-            getattr(cls, name) is getattr(PneuNetGraspEnv, name)
-            for name in ("_begin_episode", "_accept_object", "_reset_state", "_rest_contact", "_after_reset",
-                         "_reset_info"))
         self._rest: Solve | None = None  # the solve at rest (see _rest_contact)
-        self._rest_obs: np.ndarray | None = None  # the observation at rest (the same for every object)
         self._class_names = task.class_names(self.config)
         self.observation_space = observation_space(self.config)
         self._warned = False
@@ -278,37 +268,13 @@ class PneuNetGraspEnv(SingleGraspEnv):
                                     params.solver)
         return equilibrium(p1, self._rest, params.actuator.chamber_height, obj.stiffness, obj.curvature)
 
-    def _begin_episode(self, options: dict[str, Any] | None) -> tuple[np.ndarray, dict[str, Any]]:
-        """The base's reset (:meth:`~pneunet_env.envs.base.SingleGraspEnv._begin_episode`) written out for this env
-        with its own hooks, lean info and the Newton contact: the same object, state, observation and info (tests keep
-        them equal to :func:`pneunet_env.task.reset_state`'s and :func:`pneunet_env.task.build_info`'s), in about half
-        the time: the state's record straight from the solve at rest, the info from :func:`lean_info` and
-        :func:`object_info_one`, the observation at rest kept. Any other env takes the base's path."""
-        if not self._own_reset or self.info_level != "lean" or self._contact is not task.newton_contact:
-            return super()._begin_episode(options)
-        obj = task.sample_object(self.np_random, self.config, pinned=options)
-        self._accept_object(obj)
-        p = self._params
-        k, c = obj.stiffness, obj.curvature
-        if self._rest is None:  # the solve at rest touches no object: solved once (see _rest_contact)
-            self._rest = step_state(0.0, 0.0, 0.0, 0.0, p.actuator, k, c, p.solver)
-        eq = equilibrium(0.0, self._rest, p.actuator.chamber_height, k, c)
-        thresholds = task.object_thresholds(obj, p.task)
-        self._state = task.EnvState(0.0, eq, obj, thresholds, _START)
-        if self._rest_obs is None:
-            self._rest_obs = task.observation(0.0, eq.volume_change, p.task, p.volume_scale)
-        static = object_info_one(obj, thresholds, p.task)
-        static["object_class"] = name = task.class_name(self._class_names, obj.class_id)
-        self._static_info = static
-        self._render_name = _render_name(name, obj, options)
-        return self._rest_obs.copy(), self._reset_info()
-
     def _accept_object(self, obj) -> None:
         check_object(obj.stiffness, obj.curvature)
         self._warned = task.warn_if_beyond_convergence(obj, self._warned)
 
     def _after_reset(self, obj, options: dict[str, Any] | None) -> None:
-        self._static_info = task.object_info(obj, self._state.thresholds, self._params.task)
+        # the table's object rows written out for one object (object_info_one: a test keeps them equal)
+        self._static_info = object_info_one(obj, self._state.thresholds, self._params.task)
         self._static_info["object_class"] = name = task.class_name(self._class_names, obj.class_id)
         self._render_name = _render_name(name, obj, options)
 
